@@ -1,0 +1,52 @@
+"""Command line: ``fabric-fenicsx static | surrogate | impact ...``.
+
+Each subcommand's module is imported only when it runs, so the material-point scenes
+never import DOLFINx.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# subcommand -> (module, help); each module offers add_arguments(parser) and run(args) and
+# imports nothing heavy (DOLFINx) at module level.
+SUBCOMMANDS = {
+    "static": ("fabric_fenicsx.static", "static material-point scenes (thesis figures 3-1 to 3-6)"),
+    "surrogate": ("fabric_fenicsx.surrogate_cli", "build or report the unit-cell surrogate"),
+    "impact": ("fabric_fenicsx.impact_cli", "ballistic impact of a fabric ply (thesis chapter 4)"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fabric-fenicsx",
+        description="Three-scale model of woven fabrics: fibril damage, yarn unit cell, DOLFINx membrane.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, (module, help_text) in SUBCOMMANDS.items():
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        p.set_defaults(_module=module)
+        try:
+            importlib.import_module(module).add_arguments(p)
+        except ModuleNotFoundError as err:
+            if err.name != module:
+                raise
+            p.set_defaults(_missing=f"'{name}' is not available in this version")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "_missing", None):
+        parser.error(args._missing)
+    try:
+        return int(importlib.import_module(args._module).run(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted: output written so far is kept", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

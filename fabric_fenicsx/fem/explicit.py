@@ -1,0 +1,245 @@
+"""Explicit central-difference dynamics of the fabric membrane with a lumped mass.
+
+Solves M a = f_ext - f_int(u) (the discrete referential balance of momentum, thesis Eq. 2-4)
+with the central-difference (leapfrog) scheme
+
+    v^{n+1/2} = v^{n-1/2} + (dt_{n-1/2} + dt_{n+1/2}) / 2 * a^n,
+    u^{n+1}   = u^n + dt_{n+1/2} v^{n+1/2},
+
+on the free dofs; clamped dofs have zero acceleration (their velocity stays what it was set to,
+zero unless you prescribe a constant edge velocity).  The first step starts from v(0) with a half
+step, v^{1/2} = v(0) + dt/2 a^0.
+
+Energy bookkeeping (all MPI sums over owned dofs), consistent at time t_n = the state whose
+internal force the last `step` evaluated:
+  kinetic   0.5 v^n . M v^n with the full-step velocity v^n = v^{n-1/2} + dt_{n-1/2}/2 a^n
+            (the average of the two half-step velocities for a constant dt);
+  internal  work of the internal forces, sum of (f_int^{n-1} + f_int^n)/2 . du (trapezoidal);
+            equals the stored energy while the material is elastic;
+  external  work of f_ext, same rule; support: work of the reactions at moving clamped dofs;
+  damping   energy dissipated by the numerical damping, same rule.
+kinetic + internal + damping - external - support is conserved (= the initial kinetic energy) up
+to the O(dt^2) error of the scheme.
+
+Numerical damping (default off): stiffness-proportional Rayleigh damping C = beta K, applied as
+the viscous stress increment beta (P^n - P^{n-1}) / dt_{n-1/2}, i.e. the damping force
+beta (f_int^n - f_int^{n-1}) / dt = beta K v^{n-1/2} evaluated with the lagged velocity (standard
+for explicit codes; it damps the geometric, prestress part of K too).  It damps a mode of
+frequency omega with the ratio beta omega / 2 and lowers the stable step to
+dt <= 2/omega_max (sqrt(1 + xi^2) - xi), xi = beta omega_max / 2, which `stable_dt` includes.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+__all__ = ["CentralDifference", "EnergyRecord", "LinearYarnMaterial"]
+
+
+class LinearYarnMaterial:
+    """Stand-in material for tests: tension-only linear yarns, P_i = k_i max(lambda_i - 1, 0)
+    (N/m), lambda_i = sqrt(1 + 2 E_i) (Eq. 2-3); damage variables alpha_i pass through unchanged.
+
+    It implements the contract the membrane driver consumes from the unit-cell surrogate:
+    `update(E1, E2, alpha1, alpha2) -> (P1, P2, alpha1, alpha2)` vectorised over points and
+    `max_wave_modulus()` -> max_i dP_i/dlambda_i (N/m).  Not a fabric model.
+    """
+
+    def __init__(self, k1: float, k2: float):
+        for name, k in (("k1", k1), ("k2", k2)):
+            if not np.isfinite(k) or k <= 0:
+                raise ValueError(f"{name} must be a finite positive stiffness in N/m, got {k!r}")
+        self.k1, self.k2 = float(k1), float(k2)
+
+    @staticmethod
+    def _stretch(E: np.ndarray, name: str) -> np.ndarray:
+        E = np.asarray(E, dtype=float)
+        if np.any(E <= -0.5):
+            raise ValueError(f"{name} must be > -0.5 (stretch > 0), got min {E.min()!r}")
+        return np.sqrt(1.0 + 2.0 * E)
+
+    def update(self, E1, E2, alpha1, alpha2):
+        """Yarn stresses for the yarn strains E1, E2 (Eq. 2-3); returns (P1, P2, alpha1, alpha2)."""
+        lam1, lam2 = self._stretch(E1, "E1"), self._stretch(E2, "E2")
+        P1 = self.k1 * np.maximum(lam1 - 1.0, 0.0)
+        P2 = self.k2 * np.maximum(lam2 - 1.0, 0.0)
+        return P1, P2, alpha1, alpha2
+
+    def max_wave_modulus(self) -> float:
+        """max over both yarns of dP_i/dlambda_i (N/m)."""
+        return max(self.k1, self.k2)
+
+    def energy_density(self, E1, E2) -> np.ndarray:
+        """Stored energy per reference area (J/m^2), 0.5 k_i (lambda_i - 1)^2 on tension."""
+        lam1, lam2 = self._stretch(E1, "E1"), self._stretch(E2, "E2")
+        return 0.5 * (self.k1 * np.maximum(lam1 - 1.0, 0.0) ** 2
+                      + self.k2 * np.maximum(lam2 - 1.0, 0.0) ** 2)
+
+
+@dataclasses.dataclass(frozen=True)
+class EnergyRecord:
+    """Energies (J) at time `time` (s); see the module docstring for their definitions."""
+    time: float
+    kinetic: float
+    internal: float
+    external: float
+    support: float
+    damping: float
+
+    @property
+    def total(self) -> float:
+        """kinetic + internal + damping - external - support: constant for an exact balance."""
+        return self.kinetic + self.internal + self.damping - self.external - self.support
+
+
+class CentralDifference:
+    """Explicit central-difference integrator for a `Membrane` with a lumped mass.
+
+    Args:
+        membrane: the `fabric_fenicsx.fem.membrane.Membrane`; its displacement `u` is the state.
+        material: object with `update(E1, E2, alpha1, alpha2) -> (P1, P2, alpha1, alpha2)` and
+            `max_wave_modulus()` (see `LinearYarnMaterial`).
+        areal_density: rho_A of the reference fabric (kg/m^2).
+        clamped_dofs: local unrolled dof indices with zero acceleration (ghost indices allowed,
+            they are ignored here because their owner handles them).
+        damping: Rayleigh stiffness-proportional coefficient beta (s), default 0.
+
+    Attributes:
+        u: owned displacement dofs (a view of membrane.u; call `membrane.u.x.scatter_forward()`
+            after editing it by hand).
+        v: owned velocity dofs: v(0) before the first step, v^{n+1/2} afterwards.
+        mass: lumped mass per owned dof (kg).
+        alpha1, alpha2: damage state of warp and fill at the owned quadrature points.
+        energy: `EnergyRecord` at the time of the last evaluated internal force.
+        timings: accumulated wall time (s) per phase: strain, material, assembly, rest.
+    """
+
+    def __init__(self, membrane, material, areal_density: float, clamped_dofs,
+                 damping: float = 0.0):
+        if not np.isfinite(damping) or damping < 0:
+            raise ValueError(f"damping (Rayleigh beta, s) must be finite and >= 0, got {damping!r}")
+        self.membrane = membrane
+        self.material = material
+        self.areal_density = float(areal_density)
+        self.beta = float(damping)
+        n = membrane.n_owned_dofs
+        self.mass = membrane.lumped_mass(areal_density)
+
+        clamped = np.asarray(clamped_dofs, dtype=np.int64).ravel()
+        n_local = membrane.u.x.array.size
+        if clamped.size and (clamped.min() < 0 or clamped.max() >= n_local):
+            raise ValueError(f"clamped_dofs must be local dof indices in [0, {n_local}), got range "
+                             f"[{clamped.min()}, {clamped.max()}]")
+        self.clamped = np.unique(clamped[clamped < n])
+        self.free = np.ones(n, dtype=bool)
+        self.free[self.clamped] = False
+        self._inv_mass_free = np.where(self.free, 1.0 / self.mass, 0.0)
+
+        self.u = membrane.u.x.array[:n]
+        self.v = np.zeros(n)
+        self.alpha1 = np.ones(membrane.n_points)
+        self.alpha2 = np.ones(membrane.n_points)
+
+        self.time = 0.0
+        self.n_steps = 0
+        self._dt_prev = 0.0
+        self._du = np.zeros(n)
+        self._f_int = np.zeros(n)
+        self._f_ext = np.zeros(n)
+        self._f_damp = np.zeros(n)
+        self._res_c = np.zeros(self.clamped.size)
+        self._works = np.zeros(4)  # internal, external, support, damping
+        self.energy = EnergyRecord(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self.timings = {"strain": 0.0, "material": 0.0, "assembly": 0.0, "rest": 0.0}
+
+    def stable_dt(self, safety: float = 0.9) -> float:
+        """safety * h_min / c_max with c_max = sqrt(max_wave_modulus / rho_A) (the Courant limit
+        of a lumped-mass linear element, omega_max = 2 c_max / h_min), lowered for the Rayleigh
+        damping as in the module docstring.  h_min is the smallest reference edge on any rank."""
+        if not (0 < safety <= 1):
+            raise ValueError(f"safety must be in (0, 1], got {safety!r}")
+        modulus = float(self.material.max_wave_modulus())
+        if not np.isfinite(modulus) or modulus <= 0:
+            raise ValueError("material.max_wave_modulus() must be finite and > 0 N/m, "
+                             f"got {modulus!r}")
+        c_max = np.sqrt(modulus / self.areal_density)
+        omega_max = 2.0 * c_max / self.membrane.min_edge_length()
+        xi = 0.5 * self.beta * omega_max
+        return safety * 2.0 / omega_max * (np.sqrt(1.0 + xi * xi) - xi)
+
+    def step(self, dt: float, f_ext: np.ndarray | None = None) -> EnergyRecord:
+        """Advance u from t_n to t_n + dt under the external nodal forces f_ext (N, owned dofs,
+        at t_n; None for no load).  Returns the energies at t_n."""
+        if not np.isfinite(dt) or dt <= 0:
+            raise ValueError(f"dt must be a finite positive time step in s, got {dt!r}")
+        m = self.membrane
+        n = m.n_owned_dofs
+        if f_ext is None:
+            f_ext = np.zeros(n)
+        else:
+            f_ext = np.array(f_ext, dtype=float)  # a copy: it is kept for the work increment
+            if f_ext.shape != (n,):
+                raise ValueError(f"f_ext must have shape ({n},) (owned dofs), got {f_ext.shape}")
+
+        t0 = time.perf_counter()
+        E1, E2 = m.yarn_strains()
+        t1 = time.perf_counter()
+        P1, P2, alpha1, alpha2 = self.material.update(E1, E2, self.alpha1, self.alpha2)
+        t2 = time.perf_counter()
+        m.set_stress(P1, P2)
+        f_int = m.internal_force()
+        t3 = time.perf_counter()
+
+        if self.beta > 0.0 and self._dt_prev > 0.0:
+            f_damp = (self.beta / self._dt_prev) * (f_int - self._f_int)
+        else:
+            f_damp = np.zeros(n)
+        residual = f_ext - f_int - f_damp
+        acc = residual * self._inv_mass_free
+
+        # Trapezoidal work over [t_{n-1}, t_n]; reactions act on clamped dofs only.
+        du = self._du
+        c = self.clamped
+        local = np.array([
+            0.5 * np.dot(f_int + self._f_int, du),
+            0.5 * np.dot(f_ext + self._f_ext, du),
+            -0.5 * np.dot(residual[c] + self._res_c, du[c]),
+            0.5 * np.dot(f_damp + self._f_damp, du),
+            0.0,
+            float(np.sum(E1) + np.sum(E2) + np.sum(P1) + np.sum(P2)),
+        ])
+        v_full = self.v + (0.5 * self._dt_prev) * acc
+        local[4] = 0.5 * np.dot(self.mass * v_full, v_full)
+        total = np.empty_like(local)
+        m.comm.Allreduce(local, total, op=MPI.SUM)
+        if not np.all(np.isfinite(total)):
+            raise FloatingPointError(
+                f"explicit step {self.n_steps} at t = {self.time:.6e} s produced non-finite values "
+                f"(work increments, kinetic energy, strain/stress sums = {total}); "
+                f"dt = {dt:.3e} s, "
+                f"stable_dt = {self.stable_dt():.3e} s. Reduce dt (safety factor) or check the "
+                f"material response for these strains.")
+        self._works += total[:4]
+        self.energy = EnergyRecord(self.time, float(total[4]), *map(float, self._works))
+
+        self.v += (0.5 * (self._dt_prev + dt)) * acc
+        np.multiply(self.v, dt, out=self._du)
+        self.u += self._du
+        m.u.x.scatter_forward()
+
+        self.alpha1, self.alpha2 = alpha1, alpha2
+        self._f_int, self._f_ext, self._f_damp = f_int, f_ext, f_damp
+        self._res_c = residual[c]
+        self._dt_prev = dt
+        self.time += dt
+        self.n_steps += 1
+        t4 = time.perf_counter()
+        tm = self.timings
+        tm["strain"] += t1 - t0
+        tm["material"] += t2 - t1
+        tm["assembly"] += t3 - t2
+        tm["rest"] += t4 - t3
+        return self.energy
