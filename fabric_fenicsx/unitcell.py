@@ -20,7 +20,8 @@ The stored energy per reference area is Psi = (W_1 + W_2) / (2 w_1 w_2), whose d
 are P_i = dPsi/dlambda_i = F_i / (2 w_j) (Eq. 2-31).
 
 Damage (Eq. 2-26/2-28, appendix A.1): A_i = alpha_i A_i^0, B_i = alpha_i B_i^0 with
-alpha_i = min(alpha_i^hist, alpha(mu_i^max)) solved by a safeguarded secant iteration.
+alpha_i = min(alpha_i^hist, alpha(mu_i^max)) solved by a safeguarded secant iteration
+(:func:`damage_step`).
 A yarn with alpha_i below ``ALPHA_BROKEN`` has failed completely and leaves the cell.
 """
 
@@ -49,6 +50,26 @@ _GAUSS_POINTS = 3
 
 class UnitCellError(RuntimeError):
     """The unit-cell Newton solve or damage iteration failed."""
+
+
+def damage_step(alpha, g, target, prev_alpha, prev_g, alpha_hist):
+    """One step of the damage iteration alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (A.1).
+
+    g = alpha - target(alpha). The fixed-point step alpha <- target converges monotonically
+    (target is non-decreasing in alpha: a weaker yarn stretches more) to the root reached along
+    the loading path. The thesis's secant step accelerates it where it goes the same way as the
+    fixed-point step, at least as far and at most 50 |g|; otherwise (g not monotone, or the other
+    yarn's damage has just changed the function) the fixed-point step is taken. Broken yarns
+    (alpha = 0) stay broken. Vectorised over any shape.
+    """
+    dg = g - prev_g
+    with np.errstate(divide="ignore", invalid="ignore"):
+        secant = alpha - g * (alpha - prev_alpha) / dg
+    step = secant - alpha
+    ok = (np.isfinite(secant) & (step * -g > 0) & (np.abs(step) >= np.abs(g))
+          & (np.abs(step) <= 50.0 * np.abs(g)))
+    new = np.clip(np.where(ok, secant, target), 0.0, alpha_hist)
+    return np.where(alpha == 0.0, 0.0, new)
 
 
 @dataclass
@@ -211,7 +232,8 @@ class UnitCell:
         """Unit cell at (E1, E2) with damage evolving from ``alpha_hist`` (appendix A.1).
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max)) (Eq. 2-25/A.12) is solved for both yarns
-        by a safeguarded fixed-point/secant iteration; the result's alpha1, alpha2 are the new
+        by the safeguarded fixed-point/secant iteration of :func:`damage_step`; the result's
+        alpha1, alpha2 are the new
         history values. ``E2=None`` leaves the fill free (P2 = 0).
         """
         lam1, lam2, alpha_hist = self._check(E1, E2, alpha_hist, "alpha_hist")
@@ -229,12 +251,6 @@ class UnitCell:
         target = self._target(res, alpha_hist)
         if np.all(alpha - target <= tol):
             return res
-        # Per yarn: g_i(alpha) = alpha_i - target_i(alpha), g_i >= 0 at alpha_hist. The
-        # fixed-point step alpha <- target decreases monotonically to the largest root (the
-        # one reached along the loading path); a secant step is taken when it stays inside
-        # the bracket [lo, hi] known from the signs of g.
-        hi, g_hi = alpha.copy(), alpha - target
-        lo = np.zeros(2)
         prev_a, prev_g = alpha.copy(), alpha - target
         alpha = target.copy()
         for it in range(max_iter):
@@ -242,19 +258,9 @@ class UnitCell:
             res = self._solve(lam1, lam2, alpha)
             target = self._target(res, alpha_hist)
             g = alpha - target
-            broken = alpha == 0.0
-            if np.all((np.abs(g) <= tol) | broken):
+            if np.all((np.abs(g) <= tol) | (alpha == 0.0)):
                 return res
-            above = g > 0
-            hi = np.where(above, np.minimum(hi, alpha), hi)
-            lo = np.where(~above, np.maximum(lo, alpha), lo)
-            dg = g - prev_g
-            with np.errstate(divide="ignore", invalid="ignore"):
-                secant = alpha - g * (alpha - prev_a) / dg
-            ok = np.isfinite(secant) & (secant > lo) & (secant < hi) & (dg != 0)
-            new = np.where(ok, secant, np.where(above, target, 0.5 * (lo + hi)))
-            prev_a, prev_g = alpha, g
-            alpha = np.where(broken, 0.0, np.clip(new, 0.0, alpha_hist))
+            alpha, prev_a, prev_g = damage_step(alpha, g, target, prev_a, prev_g, alpha_hist), alpha, g
         raise UnitCellError(
             f"damage iteration did not converge at E1={res.E1:.6g}, E2={res.E2:.6g} from "
             f"alpha_hist={tuple(alpha_hist)}: last alpha={tuple(alpha)}, |g|={np.abs(g).max():.3g} "

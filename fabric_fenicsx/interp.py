@@ -1,0 +1,52 @@
+"""Vectorised interpolation on uniform grids (the surrogate's look-up kernels).
+
+Two 1D kernels, combined as tensor products: linear (2 taps, C0) and Catmull-Rom cubic
+convolution (4 taps, C1, third-order accurate for smooth data). Each returns the tap
+offsets and the weights (and their derivatives in the grid coordinate) for a batch of
+local coordinates t in [0, 1).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+ORDERS = {1: "linear", 3: "cubic (Catmull-Rom)"}
+
+
+def kernel(order: int, t: np.ndarray, derivative: bool = False):
+    """Tap offsets (relative to the cell's left node) and weights of shape (taps, npts).
+
+    With ``derivative=True`` also the weights' derivatives d/dt.
+    """
+    if order == 1:
+        offsets = (0, 1)
+        w = np.stack((1.0 - t, t))
+        dw = np.stack((-np.ones_like(t), np.ones_like(t))) if derivative else None
+    elif order == 3:
+        offsets = (-1, 0, 1, 2)
+        t2 = t * t
+        t3 = t2 * t
+        w = 0.5 * np.stack((-t3 + 2.0 * t2 - t,
+                            3.0 * t3 - 5.0 * t2 + 2.0,
+                            -3.0 * t3 + 4.0 * t2 + t,
+                            t3 - t2))
+        dw = (0.5 * np.stack((-3.0 * t2 + 4.0 * t - 1.0,
+                              9.0 * t2 - 10.0 * t,
+                              -9.0 * t2 + 8.0 * t + 1.0,
+                              3.0 * t2 - 2.0 * t)) if derivative else None)
+    else:
+        raise ValueError(f"interpolation order must be one of {sorted(ORDERS)}, got {order!r}")
+    return (offsets, w, dw) if derivative else (offsets, w)
+
+
+def locate(x: np.ndarray, lo: float, h: float, n: int, order: int):
+    """Cell index i and local coordinate t of points x on the grid lo + k h, k = 0..n-1.
+
+    The cell is chosen so that all taps of ``order`` lie on the grid; the caller keeps x
+    inside the range where that holds (ghost nodes for the cubic kernel).
+    """
+    s = (x - lo) / h
+    first = 1 if order == 3 else 0
+    last = n - 3 if order == 3 else n - 2
+    i = np.clip(np.floor(s).astype(np.int64), first, last)
+    return i, s - i

@@ -1,0 +1,469 @@
+"""The unit cell memoised as an interpolant over the membrane strains, and the vectorised
+constitutive update the membrane calls at its quadrature points.
+
+Damage scales out of the unit cell (Eq. 2-26/2-28 with both yarns' A and B scaled alike):
+    response(E1, E2, alpha1, alpha2) = alpha_max * response(E1, E2, r, weaker yarn),
+    r = alpha_min / alpha_max,
+for the forces (P1, P2, V, Psi), while the stretches mu_i do not change. So the table is
+three-dimensional: (E1, E2) on a uniform grid, and r in [0, 1] for the two cases "warp
+weaker" and "fill weaker"; r = 1 (both yarns equally intact, the common case) is a 2D
+layer of its own. r = 0 is a broken yarn that has left the cell.
+
+Strains beyond the table:
+  * E_i above E_i^fail = ((mu_i^complete L_i / w_i)^2 - 1) / 2: the yarn is certainly broken,
+    because mu_i^max >= lambda_i w_i / L_i (its projected length cannot exceed its stretched
+    length), so alpha_i = 0 exactly; this is not an extrapolation.
+  * E_i below the table's lower end (compression beyond -0.03 by default): the lookup uses
+    the lower end; such points are counted and reported.
+Stresses returned by ``evaluate`` and ``update`` are tension-only (P_i >= 0): a fabric
+wrinkles instead of carrying compression.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from fabric_fenicsx import interp
+from fabric_fenicsx.materials import Fabric
+from fabric_fenicsx.tiles import (QUANTITIES, Progress, cache_key, default_cache_dir, load_tile,
+                                  save_tile, solve_blocks)
+from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell, damage_step
+
+_Q = {name: k for k, name in enumerate(QUANTITIES)}
+WARP_WEAKER, FILL_WEAKER = 0, 1
+R_LIMIT = 1e-4
+
+
+class SurrogateError(RuntimeError):
+    """The surrogate's damage iteration failed."""
+
+
+@dataclass
+class RangeStats:
+    """Points that fell outside the table, accumulated over calls (see ``report``)."""
+
+    points: int = 0
+    beyond_failure: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.int64))
+    compression: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.int64))
+    E_min: np.ndarray = field(default_factory=lambda: np.full(2, np.inf))
+    E_max: np.ndarray = field(default_factory=lambda: np.full(2, -np.inf))
+
+    def report(self, E_table_min: float) -> str:
+        lines = [f"surrogate range: {self.points} point evaluations, strains seen "
+                 f"E1 in [{self.E_min[0]:.4g}, {self.E_max[0]:.4g}], "
+                 f"E2 in [{self.E_min[1]:.4g}, {self.E_max[1]:.4g}]"]
+        for i, yarn in enumerate(("warp", "fill")):
+            if self.beyond_failure[i]:
+                lines.append(f"  {self.beyond_failure[i]} points beyond complete failure of a "
+                             f"straight {yarn} yarn (alpha = 0, no force)")
+            if self.compression[i]:
+                lines.append(f"  {self.compression[i]} points with {yarn} compressed below the table "
+                             f"(E < {E_table_min:g}; looked up at its end, tension-only)")
+        return "\n".join(lines)
+
+
+class Surrogate:
+    """The unit cell of ``fabric`` tabulated over (E1, E2, r) and interpolated.
+
+    Parameters
+    ----------
+    fabric : the fabric.
+    resolution : grid spacing h of E1 and E2.
+    r_nodes : nodes of the relative integrity r = alpha_min / alpha_max in [0, 1], uniform
+        in sqrt(r).
+    order : interpolation order in (E1, E2): 3 (Catmull-Rom cubic, C1) or 1 (linear);
+        sqrt(r) is interpolated linearly.
+    E_min : lower end of the table (compression); the upper end follows from the fabric
+        (beyond complete failure of both straight yarns).
+    n_elements : unit-cell elements per half-yarn (default of :class:`UnitCell`).
+    tile : grid nodes per tile side; tiles are solved only when a lookup needs them.
+    cache_dir : where solved tiles are kept (default :func:`tiles.default_cache_dir`);
+        ``False`` disables the disk cache.
+    workers : processes for solving tiles (default: all cores).
+    progress : show a progress bar while solving tiles.
+    """
+
+    def __init__(self, fabric: Fabric, resolution: float = 0.001, r_nodes: int = 11, order: int = 3,
+                 E_min: float = -0.03, n_elements: int | None = None, tile: int = 16,
+                 cache_dir: str | Path | None | bool = None, workers: int | None = None,
+                 progress: bool = True):
+        if not isinstance(fabric, Fabric):
+            raise ValueError(f"fabric must be a Fabric, got {fabric!r}")
+        if not (isinstance(resolution, (int, float)) and 0 < resolution <= 0.01):
+            raise ValueError(f"resolution must be a strain step in (0, 0.01], got {resolution!r}")
+        if not (isinstance(r_nodes, int) and r_nodes >= 2):
+            raise ValueError(f"r_nodes must be an integer >= 2, got {r_nodes!r}")
+        if order not in interp.ORDERS:
+            raise ValueError(f"order must be one of {sorted(interp.ORDERS)}, got {order!r}")
+        if not (isinstance(E_min, (int, float)) and -0.4 < E_min < 0):
+            raise ValueError(f"E_min must be a compressive strain in (-0.4, 0), got {E_min!r}")
+        if not (isinstance(tile, int) and tile >= 4):
+            raise ValueError(f"tile must be an integer >= 4, got {tile!r}")
+        self.fabric = fabric
+        self.order = order
+        self.h = float(resolution)
+        self.r_nodes = int(r_nodes)
+        self.tile = int(tile)
+        self.progress = progress
+        self.workers = workers or (len(__import__("os").sched_getaffinity(0)) or 1)
+        cell = UnitCell(fabric, n_elements=n_elements)
+        self.n_elements = cell.n_elements
+        self.mu_crit = cell.mu_crit.copy()
+        law = fabric.damage
+        mu_complete = np.array([law.mu_complete(m) for m in self.mu_crit])
+        L = np.array([fabric.warp.L, fabric.fill.L])
+        self.E_fail = 0.5 * ((mu_complete * L / cell.w) ** 2 - 1.0)
+        # One ghost node below E_min and above the top for the cubic kernel's taps.
+        k_lo = math.floor(E_min / self.h + 1e-9)
+        k_hi = math.ceil(self.E_fail.max() / self.h - 1e-9) + 1
+        self.E_table = (k_lo * self.h, k_hi * self.h)
+        self.E_lo = (k_lo - 1) * self.h
+        self.nE = k_hi - k_lo + 3
+        self.n_tiles = -(-self.nE // self.tile)
+        # Uniform in sqrt(r): the weak yarn's stretch changes fastest as r -> 0, where the
+        # damage law is most sensitive to it (measured: see the surrogate report).
+        self.r_grid = np.linspace(0.0, 1.0, self.r_nodes) ** 2
+        nq = len(QUANTITIES)
+        self.intact = np.full((self.nE, self.nE, nq), np.nan)
+        self.damaged = np.full((2, self.nE, self.nE, self.r_nodes, nq), np.nan)
+        self.built = {"intact": np.zeros((self.n_tiles,) * 2, bool),
+                      "damaged": np.zeros((self.n_tiles,) * 2, bool)}
+        settings = {"resolution": self.h, "r_nodes": self.r_nodes, "E_lo": self.E_lo, "nE": self.nE,
+                    "tile": self.tile, "n_elements": self.n_elements, "tol": cell.tol,
+                    "alpha_broken": ALPHA_BROKEN, "r_limit": R_LIMIT, "r_spacing": "sqrt"}
+        self.key = cache_key(fabric.to_dict(), settings)
+        if cache_dir is False:
+            self.cache_dir = None
+        else:
+            self.cache_dir = (Path(cache_dir) if cache_dir else default_cache_dir()) / f"surrogate-{self.key}"
+        self.stats = RangeStats()
+        self.solves = 0
+        self.build_seconds = 0.0
+
+    # ------------------------------------------------------------------ tiles
+    def _tile_nodes(self, a: int) -> np.ndarray:
+        return np.arange(a * self.tile, min((a + 1) * self.tile, self.nE))
+
+    def _tile_path(self, layer: str, a: int, b: int) -> Path | None:
+        return None if self.cache_dir is None else self.cache_dir / f"{layer}_{a}_{b}.npz"
+
+    def ensure_tiles(self, layer: str, tiles) -> None:
+        """Solve (or load from the cache) the given tiles [(a, b), ...] of ``layer``."""
+        import time
+        tiles = [(int(a), int(b)) for a, b in tiles if not self.built[layer][a, b]]
+        if not tiles:
+            return
+        if layer == "damaged":
+            self.ensure_tiles("intact", tiles)
+        t0 = time.perf_counter()
+        nr = self.r_nodes
+        todo = []
+        for a, b in tiles:
+            ia, jb = self._tile_nodes(a), self._tile_nodes(b)
+            shape = ((len(ia), len(jb), len(QUANTITIES)) if layer == "intact"
+                     else (2, len(ia), len(jb), nr - 1, len(QUANTITIES)))
+            path = self._tile_path(layer, a, b)
+            values = load_tile(path, self.key, shape) if path else None
+            if values is not None:
+                self._store(layer, a, b, values)
+            else:
+                todo.append((a, b, shape))
+        if todo:
+            E = self.E_lo + self.h * np.arange(self.nE)
+            tasks, pending = [], {}
+            for a, b, shape in todo:
+                ia, jb = self._tile_nodes(a), self._tile_nodes(b)
+                pending[(a, b)] = [np.empty(shape), 0]
+                if layer == "intact":
+                    tasks.append(((a, b, None, None), (1.0, 1.0), E[ia], E[jb]))
+                else:
+                    for case in (WARP_WEAKER, FILL_WEAKER):
+                        for k, r in enumerate(self.r_grid[:-1]):
+                            # The r = 0 node holds the limit r -> 0+, solved at R_LIMIT: forces
+                            # within 1e-4 of the broken cell's, and the weak yarn's stretch is
+                            # its limit (a removed yarn has none), which the damage iteration needs.
+                            r = max(r, R_LIMIT)
+                            alpha = (r, 1.0) if case == WARP_WEAKER else (1.0, r)
+                            tasks.append(((a, b, case, k), alpha, E[ia], E[jb]))
+            n_solves = sum(len(t[2]) * len(t[3]) for t in tasks)
+            bar = Progress(n_solves, f"surrogate: {len(todo)} {layer} tile(s)", self.progress)
+            for (a, b, case, k), out in solve_blocks(tasks, self.fabric.to_dict(), self.n_elements,
+                                                     self.workers, bar):
+                entry = pending[(a, b)]
+                if case is None:
+                    entry[0][...] = out
+                else:
+                    entry[0][case, :, :, k, :] = out
+                entry[1] += 1
+                expected = 1 if case is None else 2 * (nr - 1)
+                if entry[1] == expected:
+                    self._store(layer, a, b, entry[0])
+                    path = self._tile_path(layer, a, b)
+                    if path:
+                        save_tile(path, self.key, entry[0])
+            self.solves += n_solves
+        self.build_seconds += time.perf_counter() - t0
+
+    def _store(self, layer: str, a: int, b: int, values: np.ndarray) -> None:
+        ia, jb = self._tile_nodes(a), self._tile_nodes(b)
+        sl = (slice(ia[0], ia[-1] + 1), slice(jb[0], jb[-1] + 1))
+        if layer == "intact":
+            self.intact[sl] = values
+        else:
+            self.damaged[(slice(None),) + sl + (slice(0, self.r_nodes - 1),)] = values
+            self.damaged[(slice(None),) + sl + (self.r_nodes - 1,)] = self.intact[sl][None]
+        self.built[layer][a, b] = True
+
+    def build(self, layers=("intact", "damaged"), E1_range=None, E2_range=None) -> None:
+        """Solve every tile of ``layers`` covering the strain ranges (default: the whole table)."""
+        lo, hi = self.E_table
+        idx = []
+        for rng in (E1_range or (lo, hi), E2_range or (lo, hi)):
+            i0 = int(np.clip(math.floor((rng[0] - self.E_lo) / self.h) - 1, 0, self.nE - 1))
+            i1 = int(np.clip(math.ceil((rng[1] - self.E_lo) / self.h) + 2, 0, self.nE - 1))
+            idx.append(range(i0 // self.tile, i1 // self.tile + 1))
+        for layer in layers:
+            self.ensure_tiles(layer, [(a, b) for a in idx[0] for b in idx[1]])
+
+    def _cells(self, E1, E2):
+        """Interpolation cells of the points, building the tiles their taps touch."""
+        i, t1 = interp.locate(E1, self.E_lo, self.h, self.nE, self.order)
+        j, t2 = interp.locate(E2, self.E_lo, self.h, self.nE, self.order)
+        return i, j, t1, t2
+
+    def _require(self, layer: str, i, j) -> None:
+        lo = 1 if self.order == 3 else 0
+        span = 3 if self.order == 3 else 1
+        ta = np.stack(((i - lo) // self.tile, (i - lo + span) // self.tile))
+        tb = np.stack(((j - lo) // self.tile, (j - lo + span) // self.tile))
+        built = self.built[layer]
+        if built[ta[0], tb[0]].all() and built[ta[1], tb[1]].all() and \
+                built[ta[0], tb[1]].all() and built[ta[1], tb[0]].all():
+            return
+        pairs = np.concatenate([np.stack((ta[p], tb[q]), axis=1) for p in (0, 1) for q in (0, 1)])
+        pairs = np.unique(pairs, axis=0)
+        self.ensure_tiles(layer, [tuple(p) for p in pairs if not built[p[0], p[1]]])
+
+    # ------------------------------------------------------------------ interpolation
+    def _lookup(self, E1, E2, r, case, qidx, derivative=False):
+        """Interpolated table values (npts, len(qidx)) at damage-scaled states (r, case)."""
+        n = E1.size
+        out = np.zeros((n, len(qidx)))
+        d1 = np.zeros_like(out) if derivative else None
+        d2 = np.zeros_like(out) if derivative else None
+        if n == 0:
+            return (out, d1, d2) if derivative else out
+        i, j, t1, t2 = self._cells(E1, E2)
+        intact = r >= 1.0
+        groups = [("intact", np.flatnonzero(intact))]
+        if not intact.all():
+            groups.append(("damaged", np.flatnonzero(~intact)))
+        for layer, sel in groups:
+            if sel.size == 0:
+                continue
+            self._require(layer, i[sel], j[sel])
+            if derivative:
+                off, w1, dw1 = interp.kernel(self.order, t1[sel], True)
+                _, w2, dw2 = interp.kernel(self.order, t2[sel], True)
+            else:
+                off, w1 = interp.kernel(self.order, t1[sel])
+                _, w2 = interp.kernel(self.order, t2[sel])
+            nq = len(QUANTITIES)
+            if layer == "intact":
+                table = self.intact.reshape(-1, nq)
+                base = i[sel] * self.nE + j[sel]
+                r_taps = [(0, None)]
+            else:
+                table = self.damaged.reshape(-1, nq)
+                rs = np.sqrt(r[sel]) * (self.r_nodes - 1)
+                k = np.minimum(np.floor(rs).astype(np.int64), self.r_nodes - 2)
+                tr = rs - k
+                base = ((case[sel] * self.nE + i[sel]) * self.nE + j[sel]) * self.r_nodes + k
+                r_taps = [(0, 1.0 - tr), (1, tr)]
+            stride_i = self.nE if layer == "intact" else self.nE * self.r_nodes
+            stride_j = 1 if layer == "intact" else self.r_nodes
+            acc = np.zeros((sel.size, nq))
+            acc1 = np.zeros_like(acc) if derivative else None
+            acc2 = np.zeros_like(acc) if derivative else None
+            for a, oa in enumerate(off):
+                for b, ob in enumerate(off):
+                    for dk, wr in r_taps:
+                        vals = table[base + oa * stride_i + ob * stride_j + dk]
+                        w = w1[a] * w2[b] if wr is None else w1[a] * w2[b] * wr
+                        acc += w[:, None] * vals
+                        if derivative:
+                            g1 = dw1[a] * w2[b] if wr is None else dw1[a] * w2[b] * wr
+                            g2 = w1[a] * dw2[b] if wr is None else w1[a] * dw2[b] * wr
+                            acc1 += g1[:, None] * vals
+                            acc2 += g2[:, None] * vals
+            out[sel] = acc[:, qidx]
+            if derivative:
+                d1[sel] = acc1[:, qidx] / self.h
+                d2[sel] = acc2[:, qidx] / self.h
+        return (out, d1, d2) if derivative else out
+
+    # ------------------------------------------------------------------ inputs
+    def _inputs(self, E1, E2, a1, a2, names=("alpha1", "alpha2")):
+        arrays = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (E1, E2, a1, a2)))
+        E1, E2, a1, a2 = (np.ascontiguousarray(x).ravel() for x in arrays)
+        for label, x in (("E1", E1), ("E2", E2), (names[0], a1), (names[1], a2)):
+            bad = ~np.isfinite(x)
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                raise ValueError(f"surrogate input {label} has {int(bad.sum())} non-finite value(s), "
+                                 f"first at point {k}: {label}={x[k]}, E1={E1[k]}, E2={E2[k]}")
+        for label, x in ((names[0], a1), (names[1], a2)):
+            bad = (x < 0) | (x > 1)
+            if bad.any():
+                k = int(np.flatnonzero(bad)[0])
+                raise ValueError(f"surrogate input {label} must lie in [0, 1]; point {k} has {x[k]}")
+        bad = (E1 <= -0.5) | (E2 <= -0.5)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"strain at point {k} (E1={E1[k]}, E2={E2[k]}) is not a Green-Lagrange strain "
+                             f"of a positive stretch (needs E > -0.5)")
+        st = self.stats
+        st.points += E1.size
+        E = (E1, E2)
+        for i in range(2):
+            beyond = E[i] > self.E_fail[i]
+            st.beyond_failure[i] += int(beyond.sum())
+            st.compression[i] += int((E[i] < self.E_table[0]).sum())
+            if E1.size:
+                st.E_min[i] = min(st.E_min[i], float(E[i].min()))
+                st.E_max[i] = max(st.E_max[i], float(E[i].max()))
+        a1 = np.where(E1 > self.E_fail[0], 0.0, a1)
+        a2 = np.where(E2 > self.E_fail[1], 0.0, a2)
+        lo, hi = self.E_table
+        return np.clip(E1, lo, hi), np.clip(E2, lo, hi), a1, a2, arrays[0].shape
+
+    def _frozen(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False):
+        """Table values at frozen damage, forces scaled by alpha_max (damage scaling)."""
+        amax = np.maximum(a1, a2)
+        alive = amax > 0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.where(alive, np.minimum(a1, a2) / amax, 1.0)
+        r = np.where(r < ALPHA_BROKEN, 0.0, r)
+        case = np.where(a1 < a2, WARP_WEAKER, FILL_WEAKER)
+        qidx = [_Q[q] for q in quantities]
+        res = self._lookup(E1, E2, r, case, qidx, derivative)
+        vals, d1, d2 = res if derivative else (res, None, None)
+        scale = np.array([0.0 if q.startswith("mu") else 1.0 for q in quantities])
+        factor = np.where(scale[None, :] > 0, np.where(alive, amax, 0.0)[:, None], 1.0)
+        vals = vals * factor
+        if derivative:
+            d1, d2 = d1 * factor, d2 * factor
+        # A broken yarn carries nothing; its stretch is reported as complete failure.
+        for i, a in enumerate((a1, a2)):
+            dead = a == 0
+            if dead.any():
+                if f"P{i + 1}" in quantities:
+                    vals[dead, quantities.index(f"P{i + 1}")] = 0.0
+                if f"mu{i + 1}" in quantities:
+                    vals[dead, quantities.index(f"mu{i + 1}")] = self.fabric.damage.mu_complete(self.mu_crit[i])
+        return (vals, d1, d2) if derivative else vals
+
+    # ------------------------------------------------------------------ public API
+    def evaluate(self, E1, E2, alpha1, alpha2, tension_only: bool = True):
+        """P1, P2 (N/m) and mu1, mu2 with damage frozen at (alpha1, alpha2), vectorised."""
+        E1, E2, a1, a2, shape = self._inputs(E1, E2, alpha1, alpha2)
+        vals = self._frozen(E1, E2, a1, a2)
+        P1, P2, mu1, mu2 = (vals[:, k].reshape(shape) for k in range(4))
+        if tension_only:
+            P1, P2 = np.maximum(P1, 0.0), np.maximum(P2, 0.0)
+        return P1, P2, mu1, mu2
+
+    def update(self, E1, E2, alpha1_hist, alpha2_hist, return_mu: bool = False,
+               tension_only: bool = True, tol: float = 1e-10, max_iter: int = 100):
+        """Constitutive update: P1, P2 (N/m) and the new alpha1, alpha2 [, mu1, mu2].
+
+        alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (Eq. 2-25, appendix A.1) is solved
+        per point by the unit cell's iteration (:func:`~fabric_fenicsx.unitcell.damage_step`),
+        vectorised over the points that need it. Points whose stretch leaves their damage
+        unchanged (mu_i below mu_i^crit, or unloading) take no iteration.
+        """
+        E1, E2, a1h, a2h, shape = self._inputs(E1, E2, alpha1_hist, alpha2_hist,
+                                                ("alpha1_hist", "alpha2_hist"))
+        alpha = np.stack((a1h, a2h), axis=1)
+        hist = alpha.copy()
+        vals = self._frozen(E1, E2, a1h, a2h)
+        target = self._target(vals, hist)
+        todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
+        self.last_iterations = 0
+        if todo.size:
+            vals[todo], alpha[todo] = self._damage_iteration(E1[todo], E2[todo], hist[todo],
+                                                             target[todo], tol, max_iter)
+        P1, P2 = vals[:, 0], vals[:, 1]
+        if tension_only:
+            P1, P2 = np.maximum(P1, 0.0), np.maximum(P2, 0.0)
+        out = [P1.reshape(shape), P2.reshape(shape), alpha[:, 0].reshape(shape), alpha[:, 1].reshape(shape)]
+        if return_mu:
+            out += [vals[:, 2].reshape(shape), vals[:, 3].reshape(shape)]
+        return tuple(out)
+
+    def _target(self, vals, hist):
+        law = self.fabric.damage
+        t = np.stack([law.alpha(vals[:, 2 + i], self.mu_crit[i]) for i in range(2)], axis=1)
+        return np.minimum(hist, t)
+
+    def _damage_iteration(self, E1, E2, hist, target, tol, max_iter):
+        n = E1.size
+        prev_a, prev_g = hist.copy(), hist - target
+        alpha = target.copy()
+        vals_out = np.empty((n, 4))
+        alpha_out = np.empty((n, 2))
+        active = np.arange(n)
+        for it in range(1, max_iter + 1):
+            alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
+            vals = self._frozen(E1[active], E2[active], alpha[:, 0], alpha[:, 1])
+            target = self._target(vals, hist[active])
+            g = alpha - target
+            done = np.all((np.abs(g) <= tol) | (alpha == 0.0), axis=1)
+            vals_out[active[done]] = vals[done]
+            alpha_out[active[done]] = alpha[done]
+            keep = ~done
+            self.last_iterations = it
+            if not keep.any():
+                return vals_out, alpha_out
+            active = active[keep]
+            alpha, g, target, prev_a, prev_g = alpha[keep], g[keep], target[keep], prev_a[keep], prev_g[keep]
+            alpha, prev_a, prev_g = damage_step(alpha, g, target, prev_a, prev_g, hist[active]), alpha, g
+        k = active[0]
+        raise SurrogateError(
+            f"surrogate damage iteration did not converge for {active.size} point(s) after {max_iter} "
+            f"iterations; first: E1={E1[k]:.6g}, E2={E2[k]:.6g}, alpha_hist={tuple(hist[k])}, "
+            f"last alpha={tuple(alpha[0])}. Refine the table (resolution, r_nodes).")
+
+    def tangent(self, E1, E2, alpha1, alpha2):
+        """dP_i/dlambda_j (N/m) with damage frozen, as arrays (dP1/dl1, dP1/dl2, dP2/dl1, dP2/dl2)."""
+        E1, E2, a1, a2, shape = self._inputs(E1, E2, alpha1, alpha2)
+        _, d1, d2 = self._frozen(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
+        l1, l2 = np.sqrt(1 + 2 * E1), np.sqrt(1 + 2 * E2)  # dE/dlambda = lambda
+        return tuple(x.reshape(shape) for x in (d1[:, 0] * l1, d2[:, 0] * l2, d1[:, 1] * l1, d2[:, 1] * l2))
+
+    def max_wave_modulus(self, E1, E2, alpha1, alpha2) -> float:
+        """Largest dP_i/dlambda_i over the points (N/m), for the explicit stable time step."""
+        t11, _, _, t22 = self.tangent(E1, E2, alpha1, alpha2)
+        return float(max(np.max(t11, initial=0.0), np.max(t22, initial=0.0)))
+
+    def respond(self, E1: float, E2: float, alpha_hist=(1.0, 1.0)):
+        """A material-point result like :meth:`UnitCell.respond` (signed P, for static scenes)."""
+        P1, P2, a1, a2, mu1, mu2 = self.update(E1, E2, alpha_hist[0], alpha_hist[1], return_mu=True,
+                                               tension_only=False)
+        V = self._frozen(*self._inputs(E1, E2, a1, a2)[:4], quantities=("V",))[0, 0]
+        return SimpleNamespace(E1=float(E1), E2=float(E2), P1=float(P1), P2=float(P2), V=float(V),
+                               alpha1=float(a1), alpha2=float(a2), mu1_max=float(mu1), mu2_max=float(mu2))
+
+    def report_range(self) -> str:
+        return self.stats.report(self.E_table[0])
+
+    def describe(self) -> str:
+        built = {k: int(v.sum()) for k, v in self.built.items()}
+        return (f"surrogate {self.key}: h = {self.h:g}, r nodes = {self.r_nodes}, order = {self.order}, "
+                f"E in [{self.E_table[0]:g}, {self.E_table[1]:g}] ({self.nE} nodes per axis with ghosts), "
+                f"tiles built {built} of {self.n_tiles ** 2} per layer, cache {self.cache_dir}")

@@ -1,0 +1,144 @@
+"""Solving and caching the surrogate's table tiles (blocks of unit-cell solves).
+
+A tile is a block of T x T grid nodes in (E1, E2) for one layer: the intact layer
+(alpha = (1, 1)) or the damaged layer (the weaker yarn's relative integrity r < 1, for both
+"warp weaker" and "fill weaker"). Each block is solved by warm-started sweeps along grid
+lines, serpentine so that consecutive solves are neighbours, on a pool of processes.
+Tiles are cached on disk as ``.npz`` files under a key derived from the fabric, the
+solver settings and the grid; each file stores that key and a checksum of its data and
+is rebuilt when either does not match.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import os
+import sys
+import time
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+QUANTITIES = ("P1", "P2", "mu1", "mu2", "V", "Psi")
+"""Tabulated per node: P_i (N/m, Eq. 2-31), maximum stretches mu_i, contact force V (N) and
+stored energy Psi (J/m^2) of the unit cell, at the node's (E1, E2, alpha)."""
+
+FORMAT_VERSION = 1
+
+
+def default_cache_dir() -> Path:
+    """``$FABRIC_FENICSX_CACHE``, else ``$XDG_CACHE_HOME/fabric_fenicsx``, else ``~/.cache/fabric_fenicsx``."""
+    env = os.environ.get("FABRIC_FENICSX_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "fabric_fenicsx"
+
+
+def cache_key(fabric_dict: dict, settings: dict) -> str:
+    """A short hash of everything a tile's values depend on."""
+    blob = json.dumps({"fabric": fabric_dict, "settings": settings, "format": FORMAT_VERSION},
+                      sort_keys=True, default=float)
+    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+
+
+def _checksum(values: np.ndarray) -> int:
+    return zlib.crc32(np.ascontiguousarray(values).tobytes())
+
+
+def load_tile(path: Path, key: str, shape: tuple) -> np.ndarray | None:
+    """The tile's values, or None if the file is missing, corrupt or of another key."""
+    if not path.exists():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            values = f["values"]
+            ok = (str(f["key"]) == key and values.shape == shape
+                  and int(f["checksum"]) == _checksum(values) and np.all(np.isfinite(values)))
+    except Exception:  # truncated or garbled file: rebuild it
+        ok = False
+    return values if ok else None
+
+
+def save_tile(path: Path, key: str, values: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
+    np.savez(tmp, values=values, key=np.array(key), checksum=np.array(_checksum(values)))
+    os.replace(tmp, path)
+
+
+# ---------------------------------------------------------------------------- solving
+_WORKER_CELL = None
+
+
+def _worker_init(fabric_dict: dict, n_elements: int) -> None:
+    global _WORKER_CELL
+    from fabric_fenicsx.materials import Fabric
+    from fabric_fenicsx.unitcell import UnitCell
+    _WORKER_CELL = UnitCell(Fabric.from_dict(fabric_dict), n_elements=n_elements)
+
+
+def _solve_block(task):
+    """Solve one block: nodes E1s x E2s at one alpha, as a serpentine warm-started sweep."""
+    tag, alpha, E1s, E2s = task
+    cell = _WORKER_CELL
+    out = np.empty((len(E1s), len(E2s), len(QUANTITIES)))
+    for j, E2 in enumerate(E2s):
+        order = range(len(E1s)) if j % 2 == 0 else range(len(E1s) - 1, -1, -1)
+        for i in order:
+            r = cell.solve(float(E1s[i]), float(E2), alpha)
+            out[i, j] = (r.P1, r.P2, r.mu1_max, r.mu2_max, r.V, r.Psi)
+    return tag, out
+
+
+class Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, total: int, label: str, enabled: bool = True):
+        self.total, self.label, self.done = total, label, 0
+        self.enabled = enabled and total > 0
+        self.t0 = self.shown = time.perf_counter()
+        # On a terminal redraw twice a second; in a log file write a line every 10 s.
+        self.tty = sys.stderr.isatty()
+        self.interval = 0.5 if self.tty else 10.0
+
+    def advance(self, n: int) -> None:
+        self.done += n
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if self.done < self.total and now - self.shown < self.interval:
+            return
+        self.shown = now
+        frac = self.done / self.total
+        bar = "#" * int(30 * frac)
+        elapsed = time.perf_counter() - self.t0
+        eta = elapsed / frac - elapsed if frac > 0 else 0.0
+        start = "\r" if self.tty else ""
+        sys.stderr.write(f"{start}{self.label} [{bar:<30}] {100 * frac:5.1f} % "
+                         f"{self.done}/{self.total} solves, {elapsed:6.1f} s, eta {eta:5.1f} s")
+        if self.done >= self.total or not self.tty:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def solve_blocks(tasks: list, fabric_dict: dict, n_elements: int, workers: int,
+                 progress: Progress | None = None):
+    """Yield (tag, values) for each task, solved on ``workers`` processes."""
+    if workers <= 1 or len(tasks) <= 1:
+        _worker_init(fabric_dict, n_elements)
+        for task in tasks:
+            tag, out = _solve_block(task)
+            if progress:
+                progress.advance(out.shape[0] * out.shape[1])
+            yield tag, out
+        return
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(workers, initializer=_worker_init, initargs=(fabric_dict, n_elements)) as pool:
+        for tag, out in pool.imap_unordered(_solve_block, tasks):
+            if progress:
+                progress.advance(out.shape[0] * out.shape[1])
+            yield tag, out

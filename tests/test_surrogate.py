@@ -1,0 +1,161 @@
+"""The unit-cell surrogate: cache, damage scaling, damage update, range handling."""
+
+import os
+
+import numpy as np
+import pytest
+
+from fabric_fenicsx.materials import zylon_as
+from fabric_fenicsx.surrogate import Surrogate
+from fabric_fenicsx.unitcell import UnitCell
+
+FABRIC = zylon_as("max")
+P_PEAK = 148e3  # N/m, peak of the uniaxial-strain response (scenario 1)
+COARSE = dict(resolution=0.004, r_nodes=6, tile=8, progress=False)
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("surrogate-cache")
+
+
+@pytest.fixture(scope="module")
+def sur(cache):
+    return Surrogate(FABRIC, cache_dir=cache, **COARSE)
+
+
+def test_cache_key_changes_with_every_fabric_parameter():
+    keys = {Surrogate(FABRIC, cache_dir=False, **COARSE).key}
+    variants = []
+    for yarn in ("warp", "fill"):
+        y = getattr(FABRIC, yarn)
+        for field in ("L", "Phi_L", "A0", "B0", "mu_crit"):
+            variants.append(FABRIC.with_yarn(yarn, **{field: getattr(y, field) * 1.001}))
+    variants += [FABRIC.replace(area=FABRIC.area * 1.001), FABRIC.replace(density=1561.0),
+                 FABRIC.replace(damage=type(FABRIC.damage)(beta=125.0))]
+    for fab in variants:
+        keys.add(Surrogate(fab, cache_dir=False, **COARSE).key)
+    keys.add(Surrogate(FABRIC, cache_dir=False, **{**COARSE, "resolution": 0.005}).key)
+    keys.add(Surrogate(FABRIC, cache_dir=False, n_elements=16, **COARSE).key)
+    assert len(keys) == len(variants) + 3
+
+
+def test_intact_values_match_direct_solves(sur):
+    rng = np.random.default_rng(1)
+    E1 = rng.uniform(0.0, 0.045, 40)
+    E2 = rng.uniform(-0.01, 0.04, 40)
+    P1, P2, mu1, mu2 = sur.evaluate(E1, E2, 1.0, 1.0, tension_only=False)
+    cell = UnitCell(FABRIC)
+    ref = np.array([[r.P1, r.P2, r.mu1_max] for r in (cell.solve(a, b) for a, b in zip(E1, E2))])
+    assert np.max(np.abs(P1 - ref[:, 0])) < 0.01 * P_PEAK
+    assert np.max(np.abs(P2 - ref[:, 1])) < 0.01 * P_PEAK
+    assert np.max(np.abs(mu1 - ref[:, 2])) < 2e-4
+    assert not sur.built["damaged"].any()  # frozen intact lookups never solve the damaged layer
+
+
+def test_scaling_identity_against_direct_solves(sur):
+    """response(E, a1, a2) = a_max response(E, r, weaker yarn), checked on damaged states."""
+    rng = np.random.default_rng(2)
+    n = 30
+    E1 = rng.uniform(0.0, 0.04, n)
+    E2 = rng.uniform(0.0, 0.03, n)
+    a = rng.uniform(0.3, 1.0, (n, 2))
+    P1, P2, _, _ = sur.evaluate(E1, E2, a[:, 0], a[:, 1], tension_only=False)
+    cell = UnitCell(FABRIC)
+    ref = np.array([[r.P1, r.P2] for r in (cell.solve(E1[k], E2[k], tuple(a[k])) for k in range(n))])
+    assert np.max(np.abs(np.c_[P1, P2] - ref)) < 0.01 * P_PEAK
+
+
+def test_second_instance_loads_from_cache(sur, cache):
+    sur.evaluate(0.01, 0.01, 1.0, 1.0)
+    again = Surrogate(FABRIC, cache_dir=cache, **COARSE)
+    P = again.evaluate(0.01, 0.01, 1.0, 1.0)
+    assert again.solves == 0
+    np.testing.assert_array_equal(P, sur.evaluate(0.01, 0.01, 1.0, 1.0))
+
+
+def test_corrupt_or_stale_cache_file_is_rebuilt(tmp_path):
+    first = Surrogate(FABRIC, cache_dir=tmp_path, **COARSE)
+    P_ref = first.evaluate(0.0, 0.0, 1.0, 1.0)[0]
+    files = sorted(first.cache_dir.glob("intact_*.npz"))
+    assert files
+    files[0].write_bytes(files[0].read_bytes()[: len(files[0].read_bytes()) // 2])  # truncated
+    second = Surrogate(FABRIC, cache_dir=tmp_path, **COARSE)
+    np.testing.assert_array_equal(second.evaluate(0.0, 0.0, 1.0, 1.0)[0], P_ref)
+    assert second.solves > 0
+    # A file of another fabric moved into this folder (stale) is detected by its key.
+    other = Surrogate(FABRIC.with_yarn("warp", A0=4000.0), cache_dir=tmp_path, **COARSE)
+    other.evaluate(0.0, 0.0, 1.0, 1.0)
+    for f in sorted(other.cache_dir.glob("intact_*.npz")):
+        os.replace(f, first.cache_dir / f.name)
+    third = Surrogate(FABRIC, cache_dir=tmp_path, **COARSE)
+    np.testing.assert_array_equal(third.evaluate(0.0, 0.0, 1.0, 1.0)[0], P_ref)
+    assert third.solves > 0
+
+
+def test_update_follows_the_unit_cell_along_uniaxial_strain(sur):
+    cell = UnitCell(FABRIC)
+    a_cell = np.ones(2)
+    a_sur = np.ones(2)
+    for E1 in np.arange(0.0, 0.07, 0.002):
+        r = cell.respond(E1, 0.0, a_cell)
+        a_cell = np.array([r.alpha1, r.alpha2])
+        P1, P2, a1, a2 = sur.update(E1, 0.0, a_sur[0], a_sur[1])
+        assert a1 <= a_sur[0] and a2 <= a_sur[1]
+        a_sur = np.array([float(a1), float(a2)])
+        assert abs(a_sur[0] - a_cell[0]) < 0.05
+        assert abs(float(P1) - max(r.P1, 0.0)) < 0.05 * P_PEAK  # steep softening, coarse table
+    assert a_sur[0] == 0.0 and a_sur[1] == 1.0
+
+
+def test_update_never_increases_damage_and_is_self_consistent(sur):
+    rng = np.random.default_rng(3)
+    n = 2000
+    E1 = rng.uniform(-0.02, 0.09, n)
+    E2 = rng.uniform(-0.02, 0.07, n)
+    hist = rng.uniform(0.0, 1.0, (n, 2))
+    hist[rng.random(n) < 0.3] = 1.0
+    P1, P2, a1, a2, mu1, mu2 = sur.update(E1, E2, hist[:, 0], hist[:, 1], return_mu=True)
+    assert np.all(a1 <= hist[:, 0]) and np.all(a2 <= hist[:, 1])
+    assert np.all(P1 >= 0) and np.all(P2 >= 0)
+    law = FABRIC.damage
+    alive = a1 > 0
+    expect = np.minimum(hist[alive, 0], law.alpha(mu1[alive], FABRIC.warp.mu_crit))
+    np.testing.assert_allclose(a1[alive], expect, atol=1e-8)
+
+
+def test_out_of_range_strains_are_counted(sur):
+    before = sur.stats.beyond_failure.copy(), sur.stats.compression.copy()
+    P1, P2, a1, a2 = sur.update([0.2, 0.01], [0.0, -0.1], [1.0, 1.0], [1.0, 1.0])
+    assert P1[0] == 0.0 and a1[0] == 0.0  # beyond complete failure of a straight warp
+    assert P2[1] == 0.0  # compressed fill: tension-only
+    assert sur.stats.beyond_failure[0] - before[0][0] == 1
+    assert sur.stats.compression[1] - before[1][1] == 1
+    assert "beyond complete failure" in sur.report_range()
+
+
+def test_tangent_matches_finite_differences(sur):
+    E1, E2 = 0.02, 0.01
+    t11, t12, t21, t22 = sur.tangent(E1, E2, 1.0, 1.0)
+    h = 1e-6
+    lam1 = np.sqrt(1 + 2 * E1)
+    Ep = 0.5 * ((lam1 + h) ** 2 - 1)
+    Em = 0.5 * ((lam1 - h) ** 2 - 1)
+    fd = (sur.evaluate(Ep, E2, 1.0, 1.0)[0] - sur.evaluate(Em, E2, 1.0, 1.0)[0]) / (2 * h)
+    np.testing.assert_allclose(t11, fd, rtol=1e-5)
+    assert t11 > 0 and t22 > 0
+
+
+@pytest.mark.parametrize("bad", [dict(E1=np.nan), dict(alpha1=np.nan), dict(alpha1=1.5), dict(E2=-0.7)])
+def test_bad_input_raises(sur, bad):
+    args = dict(E1=0.01, E2=0.0, alpha1=1.0, alpha2=1.0)
+    args.update(bad)
+    with pytest.raises(ValueError):
+        sur.evaluate(args["E1"], args["E2"], args["alpha1"], args["alpha2"])
+
+
+def test_bad_construction_raises():
+    with pytest.raises(ValueError, match="resolution"):
+        Surrogate(FABRIC, resolution=0.0)
+    with pytest.raises(ValueError, match="order"):
+        Surrogate(FABRIC, order=2)
