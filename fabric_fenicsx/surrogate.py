@@ -32,7 +32,8 @@ from fabric_fenicsx import interp
 from fabric_fenicsx.materials import Fabric
 from fabric_fenicsx.tiles import (QUANTITIES, Progress, cache_key, default_cache_dir, load_tile,
                                   save_tile, solve_blocks)
-from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell, damage_step
+from fabric_fenicsx.damage_solver import DamageIterationError, solve_damage
+from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell
 
 _Q = {name: k for k, name in enumerate(QUANTITIES)}
 WARP_WEAKER, FILL_WEAKER = 0, 1
@@ -379,11 +380,11 @@ class Surrogate:
         return P1, P2, mu1, mu2
 
     def update(self, E1, E2, alpha1_hist, alpha2_hist, return_mu: bool = False,
-               tension_only: bool = True, tol: float = 1e-10, max_iter: int = 100):
+               tension_only: bool = True, tol: float = 1e-10):
         """Constitutive update: P1, P2 (N/m) and the new alpha1, alpha2 [, mu1, mu2].
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (Eq. 2-25, appendix A.1) is solved
-        per point by the unit cell's iteration (:func:`~fabric_fenicsx.unitcell.damage_step`),
+        per point by the unit cell's bracketing iteration (:mod:`fabric_fenicsx.damage_solver`),
         vectorised over the points that need it. Points whose stretch leaves their damage
         unchanged (mu_i below mu_i^crit, or unloading) take no iteration.
         """
@@ -394,10 +395,10 @@ class Surrogate:
         vals = self._frozen(E1, E2, a1h, a2h)
         target = self._target(vals, hist)
         todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
-        self.last_iterations = 0
+        self.last_damaging = todo.size
         if todo.size:
             vals[todo], alpha[todo] = self._damage_iteration(E1[todo], E2[todo], hist[todo],
-                                                             target[todo], tol, max_iter)
+                                                             target[todo], tol)
         P1, P2 = vals[:, 0], vals[:, 1]
         if tension_only:
             P1, P2 = np.maximum(P1, 0.0), np.maximum(P2, 0.0)
@@ -411,33 +412,18 @@ class Surrogate:
         t = np.stack([law.alpha(vals[:, 2 + i], self.mu_crit[i]) for i in range(2)], axis=1)
         return np.minimum(hist, t)
 
-    def _damage_iteration(self, E1, E2, hist, target, tol, max_iter):
-        n = E1.size
-        prev_a, prev_g = hist.copy(), hist - target
-        alpha = target.copy()
-        vals_out = np.empty((n, 4))
-        alpha_out = np.empty((n, 2))
-        active = np.arange(n)
-        for it in range(1, max_iter + 1):
+    def _damage_iteration(self, E1, E2, hist, target, tol):
+        def evaluate(rows, alpha):
             alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
-            vals = self._frozen(E1[active], E2[active], alpha[:, 0], alpha[:, 1])
-            target = self._target(vals, hist[active])
-            g = alpha - target
-            done = np.all((np.abs(g) <= tol) | (alpha == 0.0), axis=1)
-            vals_out[active[done]] = vals[done]
-            alpha_out[active[done]] = alpha[done]
-            keep = ~done
-            self.last_iterations = it
-            if not keep.any():
-                return vals_out, alpha_out
-            active = active[keep]
-            alpha, g, target, prev_a, prev_g = alpha[keep], g[keep], target[keep], prev_a[keep], prev_g[keep]
-            alpha, prev_a, prev_g = damage_step(alpha, g, target, prev_a, prev_g, hist[active]), alpha, g
-        k = active[0]
-        raise SurrogateError(
-            f"surrogate damage iteration did not converge for {active.size} point(s) after {max_iter} "
-            f"iterations; first: E1={E1[k]:.6g}, E2={E2[k]:.6g}, alpha_hist={tuple(hist[k])}, "
-            f"last alpha={tuple(alpha[0])}. Refine the table (resolution, r_nodes).")
+            return self._target(self._frozen(E1[rows], E2[rows], alpha[:, 0], alpha[:, 1]), hist[rows])
+
+        try:
+            alpha = solve_damage(hist, target, evaluate, floor=2 * ALPHA_BROKEN, tol=tol)
+        except DamageIterationError as err:
+            raise SurrogateError(f"surrogate {err}. Refine the table (resolution, r_nodes) or "
+                                 f"loosen the update's tol.") from err
+        alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
+        return self._frozen(E1, E2, alpha[:, 0], alpha[:, 1]), alpha
 
     def tangent(self, E1, E2, alpha1, alpha2):
         """dP_i/dlambda_j (N/m) with damage frozen, as arrays (dP1/dl1, dP1/dl2, dP2/dl1, dP2/dl2)."""

@@ -20,8 +20,8 @@ The stored energy per reference area is Psi = (W_1 + W_2) / (2 w_1 w_2), whose d
 are P_i = dPsi/dlambda_i = F_i / (2 w_j) (Eq. 2-31).
 
 Damage (Eq. 2-26/2-28, appendix A.1): A_i = alpha_i A_i^0, B_i = alpha_i B_i^0 with
-alpha_i = min(alpha_i^hist, alpha(mu_i^max)) solved by a safeguarded secant iteration
-(:func:`damage_step`).
+alpha_i = min(alpha_i^hist, alpha(mu_i^max)) solved by a bracketing iteration
+(:mod:`fabric_fenicsx.damage_solver`).
 A yarn with alpha_i below ``ALPHA_BROKEN`` has failed completely and leaves the cell.
 """
 
@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from fabric_fenicsx.damage_solver import DamageIterationError, solve_damage
 from fabric_fenicsx.materials import Fabric
 
 ALPHA_BROKEN = 1e-6
@@ -50,26 +51,6 @@ _GAUSS_POINTS = 3
 
 class UnitCellError(RuntimeError):
     """The unit-cell Newton solve or damage iteration failed."""
-
-
-def damage_step(alpha, g, target, prev_alpha, prev_g, alpha_hist):
-    """One step of the damage iteration alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (A.1).
-
-    g = alpha - target(alpha). The fixed-point step alpha <- target converges monotonically
-    (target is non-decreasing in alpha: a weaker yarn stretches more) to the root reached along
-    the loading path. The thesis's secant step accelerates it where it goes the same way as the
-    fixed-point step, at least as far and at most 50 |g|; otherwise (g not monotone, or the other
-    yarn's damage has just changed the function) the fixed-point step is taken. Broken yarns
-    (alpha = 0) stay broken. Vectorised over any shape.
-    """
-    dg = g - prev_g
-    with np.errstate(divide="ignore", invalid="ignore"):
-        secant = alpha - g * (alpha - prev_alpha) / dg
-    step = secant - alpha
-    ok = (np.isfinite(secant) & (step * -g > 0) & (np.abs(step) >= np.abs(g))
-          & (np.abs(step) <= 50.0 * np.abs(g)))
-    new = np.clip(np.where(ok, secant, target), 0.0, alpha_hist)
-    return np.where(alpha == 0.0, 0.0, new)
 
 
 @dataclass
@@ -232,7 +213,7 @@ class UnitCell:
         """Unit cell at (E1, E2) with damage evolving from ``alpha_hist`` (appendix A.1).
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max)) (Eq. 2-25/A.12) is solved for both yarns
-        by the safeguarded fixed-point/secant iteration of :func:`damage_step`; the result's
+        by the bracketing iteration of :mod:`fabric_fenicsx.damage_solver`; the result's
         alpha1, alpha2 are the new
         history values. ``E2=None`` leaves the fill free (P2 = 0).
         """
@@ -245,26 +226,21 @@ class UnitCell:
         law = np.array([float(self.fabric.damage.alpha(mu[i], self.mu_crit[i])) for i in range(2)])
         return np.minimum(alpha_hist, law)
 
-    def _respond(self, lam1, lam2, alpha_hist, tol=1e-10, max_iter=200) -> UnitCellResult:
-        alpha = alpha_hist.copy()
-        res = self._solve(lam1, lam2, alpha)
+    def _respond(self, lam1, lam2, alpha_hist, tol=1e-10) -> UnitCellResult:
+        res = self._solve(lam1, lam2, alpha_hist)
         target = self._target(res, alpha_hist)
-        if np.all(alpha - target <= tol):
+        if np.all(alpha_hist - target <= tol):
             return res
-        prev_a, prev_g = alpha.copy(), alpha - target
-        alpha = target.copy()
-        for it in range(max_iter):
-            alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
-            res = self._solve(lam1, lam2, alpha)
-            target = self._target(res, alpha_hist)
-            g = alpha - target
-            if np.all((np.abs(g) <= tol) | (alpha == 0.0)):
-                return res
-            alpha, prev_a, prev_g = damage_step(alpha, g, target, prev_a, prev_g, alpha_hist), alpha, g
-        raise UnitCellError(
-            f"damage iteration did not converge at E1={res.E1:.6g}, E2={res.E2:.6g} from "
-            f"alpha_hist={tuple(alpha_hist)}: last alpha={tuple(alpha)}, |g|={np.abs(g).max():.3g} "
-            f"after {max_iter} iterations. Reduce the strain increment along the path.")
+
+        def evaluate(rows, alpha):
+            return np.array([self._target(self._solve(lam1, lam2, a), alpha_hist) for a in alpha])
+
+        try:
+            alpha = solve_damage(alpha_hist[None], target[None], evaluate, floor=2 * ALPHA_BROKEN, tol=tol)[0]
+        except DamageIterationError as err:
+            raise UnitCellError(f"damage iteration failed at E1={res.E1:.6g}, E2={res.E2:.6g}: {err}. "
+                                f"Reduce the strain increment along the path.") from err
+        return self._solve(lam1, lam2, alpha)
 
     # ------------------------------------------------------------------ frozen-damage solve
     def _check(self, E1, E2, alpha, name):
