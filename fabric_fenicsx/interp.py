@@ -50,3 +50,23 @@ def locate(x: np.ndarray, lo: float, h: float, n: int, order: int):
     last = n - 3 if order == 3 else n - 2
     i = np.clip(np.floor(s).astype(np.int64), first, last)
     return i, s - i
+
+
+def power_matrix(order: int) -> np.ndarray:
+    """M[k, p]: the kernel's weight of tap k is sum_p M[k, p] t^p (same taps as ``kernel``)."""
+    if order == 1:
+        return np.array([[1.0, -1.0], [0.0, 1.0]])
+    if order == 3:
+        return 0.5 * np.array([[0.0, -1.0, 2.0, -1.0],
+                               [2.0, 0.0, -5.0, 3.0],
+                               [0.0, 1.0, 4.0, -3.0],
+                               [0.0, 0.0, -1.0, 1.0]])
+    raise ValueError(f"interpolation order must be one of {sorted(ORDERS)}, got {order!r}")
+
+
+def powers(t: np.ndarray, order: int, derivative: bool = False) -> np.ndarray:
+    """[1, t, ..., t^order] (npts, order+1), or its derivative d/dt."""
+    p = np.arange(order + 1)
+    if not derivative:
+        return t[:, None] ** p[None, :]
+    return np.where(p[None, :] > 0, p[None, :] * t[:, None] ** np.maximum(p[None, :] - 1, 0), 0.0)

@@ -37,6 +37,7 @@ from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell
 
 _Q = {name: k for k, name in enumerate(QUANTITIES)}
 WARP_WEAKER, FILL_WEAKER = 0, 1
+_CHUNK = 16384  # points per interpolation chunk: keeps the (taps, chunk) temporaries in cache
 R_LIMIT = 1e-4
 
 
@@ -132,6 +133,9 @@ class Surrogate:
         nq = len(QUANTITIES)
         self.intact = np.full((self.nE, self.nE, nq), np.nan)
         self.damaged = np.full((2, self.nE, self.nE, self.r_nodes, nq), np.nan)
+        P = self.order + 1
+        self._coef = {"intact": np.full((nq, self.nE, self.nE, P, P), np.nan),
+                      "damaged": np.full((nq, 2, self.nE, self.nE, self.r_nodes, P, P), np.nan)}
         self.built = {"intact": np.zeros((self.n_tiles,) * 2, bool),
                       "damaged": np.zeros((self.n_tiles,) * 2, bool)}
         settings = {"resolution": self.h, "r_nodes": self.r_nodes, "E_lo": self.E_lo, "nE": self.nE,
@@ -219,6 +223,29 @@ class Surrogate:
             self.damaged[(slice(None),) + sl + (slice(0, self.r_nodes - 1),)] = values
             self.damaged[(slice(None),) + sl + (self.r_nodes - 1,)] = self.intact[sl][None]
         self.built[layer][a, b] = True
+        self._update_coefficients(layer, ia[0] - 2, ia[-1] + 2, jb[0] - 2, jb[-1] + 2)
+
+    def _update_coefficients(self, layer: str, i0: int, i1: int, j0: int, j1: int) -> None:
+        """Per-cell polynomial coefficients C_pq (value = sum C_pq t1^p t2^q) of the cells
+        [i0, i1] x [j0, j1] whose taps touch a changed tile (cells beside an unbuilt tile
+        hold NaN and are never looked up)."""
+        first, last = (1, self.nE - 3) if self.order == 3 else (0, self.nE - 2)
+        i0, i1 = max(i0, first), min(i1, last)
+        j0, j1 = max(j0, first), min(j1, last)
+        if i0 > i1 or j0 > j1:
+            return
+        M = interp.power_matrix(self.order)
+        offsets = interp.kernel(self.order, np.zeros(1))[0]
+        if layer == "intact":
+            V = np.moveaxis(self.intact, -1, 0)  # (nq, nE, nE)
+            F = np.stack([np.stack([V[:, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
+                          for oa in offsets])
+            self._coef["intact"][:, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxij->xijpq", M, M, F)
+        else:
+            V = np.moveaxis(self.damaged, -1, 0)  # (nq, 2, nE, nE, nr)
+            F = np.stack([np.stack([V[:, :, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
+                          for oa in offsets])
+            self._coef["damaged"][:, :, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxcijr->xcijrpq", M, M, F)
 
     def build(self, layers=("intact", "damaged"), E1_range=None, E2_range=None) -> None:
         """Solve every tile of ``layers`` covering the strain ranges (default: the whole table)."""
@@ -240,19 +267,23 @@ class Surrogate:
     def _require(self, layer: str, i, j) -> None:
         lo = 1 if self.order == 3 else 0
         span = 3 if self.order == 3 else 1
-        ta = np.stack(((i - lo) // self.tile, (i - lo + span) // self.tile))
-        tb = np.stack(((j - lo) // self.tile, (j - lo + span) // self.tile))
+        ta = ((i - lo) // self.tile, (i - lo + span) // self.tile)
+        tb = ((j - lo) // self.tile, (j - lo + span) // self.tile)
         built = self.built[layer]
-        if built[ta[0], tb[0]].all() and built[ta[1], tb[1]].all() and \
-                built[ta[0], tb[1]].all() and built[ta[1], tb[0]].all():
-            return
+        if built[ta[0].min():ta[1].max() + 1, tb[0].min():tb[1].max() + 1].all():
+            return  # the bounding box of the tiles touched is built
         pairs = np.concatenate([np.stack((ta[p], tb[q]), axis=1) for p in (0, 1) for q in (0, 1)])
         pairs = np.unique(pairs, axis=0)
         self.ensure_tiles(layer, [tuple(p) for p in pairs if not built[p[0], p[1]]])
 
     # ------------------------------------------------------------------ interpolation
     def _lookup(self, E1, E2, r, case, qidx, derivative=False):
-        """Interpolated table values (npts, len(qidx)) at damage-scaled states (r, case)."""
+        """Interpolated table values (npts, len(qidx)) at damage-scaled states (r, case).
+
+        Points at r = 1 use the 2D intact layer; the others the damaged layer, linear in
+        sqrt(r). Each cell's interpolant is a polynomial in the local coordinates, evaluated
+        from its precomputed coefficients, in chunks that keep the temporaries in cache.
+        """
         n = E1.size
         out = np.zeros((n, len(qidx)))
         d1 = np.zeros_like(out) if derivative else None
@@ -261,51 +292,44 @@ class Surrogate:
             return (out, d1, d2) if derivative else out
         i, j, t1, t2 = self._cells(E1, E2)
         intact = r >= 1.0
-        groups = [("intact", np.flatnonzero(intact))]
-        if not intact.all():
+        everything = bool(intact.all())
+        groups = [("intact", None if everything else np.flatnonzero(intact))]
+        if not everything:
             groups.append(("damaged", np.flatnonzero(~intact)))
+        P = self.order + 1
         for layer, sel in groups:
-            if sel.size == 0:
+            if sel is not None and sel.size == 0:
                 continue
-            self._require(layer, i[sel], j[sel])
-            if derivative:
-                off, w1, dw1 = interp.kernel(self.order, t1[sel], True)
-                _, w2, dw2 = interp.kernel(self.order, t2[sel], True)
-            else:
-                off, w1 = interp.kernel(self.order, t1[sel])
-                _, w2 = interp.kernel(self.order, t2[sel])
-            nq = len(QUANTITIES)
-            if layer == "intact":
-                table = self.intact.reshape(-1, nq)
-                base = i[sel] * self.nE + j[sel]
-                r_taps = [(0, None)]
-            else:
-                table = self.damaged.reshape(-1, nq)
-                rs = np.sqrt(r[sel]) * (self.r_nodes - 1)
-                k = np.minimum(np.floor(rs).astype(np.int64), self.r_nodes - 2)
-                tr = rs - k
-                base = ((case[sel] * self.nE + i[sel]) * self.nE + j[sel]) * self.r_nodes + k
-                r_taps = [(0, 1.0 - tr), (1, tr)]
-            stride_i = self.nE if layer == "intact" else self.nE * self.r_nodes
-            stride_j = 1 if layer == "intact" else self.r_nodes
-            acc = np.zeros((sel.size, nq))
-            acc1 = np.zeros_like(acc) if derivative else None
-            acc2 = np.zeros_like(acc) if derivative else None
-            for a, oa in enumerate(off):
-                for b, ob in enumerate(off):
-                    for dk, wr in r_taps:
-                        vals = table[base + oa * stride_i + ob * stride_j + dk]
-                        w = w1[a] * w2[b] if wr is None else w1[a] * w2[b] * wr
-                        acc += w[:, None] * vals
+            ii, jj = (i, j) if sel is None else (i[sel], j[sel])
+            self._require(layer, ii, jj)
+            coef = self._coef[layer].reshape(len(QUANTITIES), -1, P, P)
+            for lo in range(0, ii.size, _CHUNK):
+                rows = np.arange(lo, min(lo + _CHUNK, ii.size)) if sel is None else sel[lo:lo + _CHUNK]
+                cell = ii[lo:lo + _CHUNK] * self.nE + jj[lo:lo + _CHUNK]
+                T1 = interp.powers(t1[rows], self.order)
+                T2 = interp.powers(t2[rows], self.order)
+                dT1 = interp.powers(t1[rows], self.order, True) if derivative else None
+                dT2 = interp.powers(t2[rows], self.order, True) if derivative else None
+                if layer == "intact":
+                    cells, wr = [cell], [None]
+                else:
+                    nr = self.r_nodes
+                    rs = np.sqrt(r[rows]) * (nr - 1)
+                    k = np.minimum(np.floor(rs).astype(np.int64), nr - 2)
+                    tr = rs - k
+                    base = ((case[rows] * self.nE * self.nE + cell) * nr) + k
+                    cells, wr = [base, base + 1], [1.0 - tr, tr]
+                for c, q in enumerate(qidx):
+                    for cc, w in zip(cells, wr):
+                        C = coef[q][cc]  # (m, P, P)
+                        inner = np.einsum("mpq,mq->mp", C, T2)
+                        val = np.einsum("mp,mp->m", inner, T1)
+                        out[rows, c] += val if w is None else w * val
                         if derivative:
-                            g1 = dw1[a] * w2[b] if wr is None else dw1[a] * w2[b] * wr
-                            g2 = w1[a] * dw2[b] if wr is None else w1[a] * dw2[b] * wr
-                            acc1 += g1[:, None] * vals
-                            acc2 += g2[:, None] * vals
-            out[sel] = acc[:, qidx]
-            if derivative:
-                d1[sel] = acc1[:, qidx] / self.h
-                d2[sel] = acc2[:, qidx] / self.h
+                            g1 = np.einsum("mp,mp->m", inner, dT1)
+                            g2 = np.einsum("mp,mp->m", np.einsum("mpq,mq->mp", C, dT2), T1)
+                            d1[rows, c] += (g1 if w is None else w * g1) / self.h
+                            d2[rows, c] += (g2 if w is None else w * g2) / self.h
         return (out, d1, d2) if derivative else out
 
     # ------------------------------------------------------------------ inputs
