@@ -37,6 +37,9 @@ from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell
 
 _Q = {name: k for k, name in enumerate(QUANTITIES)}
 WARP_WEAKER, FILL_WEAKER = 0, 1
+MU_MARGIN = 2e-3
+"""Stretch margin below mu_crit under which a table cell cannot start damage: the cubic
+interpolant overshoots its nodes by far less (neighbouring nodes differ by ~1e-4 in mu)."""
 _CHUNK = 16384  # points per interpolation chunk: keeps the (taps, chunk) temporaries in cache
 R_LIMIT = 1e-4
 
@@ -134,6 +137,8 @@ class Surrogate:
         self.intact = np.full((self.nE, self.nE, nq), np.nan)
         self.damaged = np.full((2, self.nE, self.nE, self.r_nodes, nq), np.nan)
         P = self.order + 1
+        self._safe = {"intact": np.zeros((self.nE, self.nE), bool),
+                      "damaged": np.zeros((self.nE, self.nE), bool)}
         self._coef = {"intact": np.full((nq, self.nE, self.nE, P, P), np.nan),
                       "damaged": np.full((nq, 2, self.nE, self.nE, self.r_nodes, P, P), np.nan)}
         self.built = {"intact": np.zeros((self.n_tiles,) * 2, bool),
@@ -241,11 +246,16 @@ class Surrogate:
             F = np.stack([np.stack([V[:, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
                           for oa in offsets])
             self._coef["intact"][:, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxij->xijpq", M, M, F)
+            mu = F[:, :, [_Q["mu1"], _Q["mu2"]]]  # (taps, taps, 2, ni, nj)
         else:
             V = np.moveaxis(self.damaged, -1, 0)  # (nq, 2, nE, nE, nr)
             F = np.stack([np.stack([V[:, :, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
                           for oa in offsets])
             self._coef["damaged"][:, :, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxcijr->xcijrpq", M, M, F)
+            mu = F[:, :, [_Q["mu1"], _Q["mu2"]]].max(axis=(3, 6))  # worst case over both cases and r
+        limit = (self.mu_crit - MU_MARGIN)[None, None, :, None, None]
+        with np.errstate(invalid="ignore"):  # NaN beside unbuilt tiles counts as unsafe
+            self._safe[layer][i0:i1 + 1, j0:j1 + 1] = np.all(mu < limit, axis=(0, 1, 2))
 
     def build(self, layers=("intact", "damaged"), E1_range=None, E2_range=None) -> None:
         """Solve every tile of ``layers`` covering the strain ranges (default: the whole table)."""
@@ -367,6 +377,16 @@ class Surrogate:
         lo, hi = self.E_table
         return np.clip(E1, lo, hi), np.clip(E2, lo, hi), a1, a2, arrays[0].shape
 
+    def _below_damage(self, E1, E2, a1, a2) -> np.ndarray:
+        """True where every table node the point's interpolation uses (all r) has both
+        stretches at least MU_MARGIN below mu_crit, so its damage cannot change."""
+        i, j, _, _ = self._cells(E1, E2)
+        intact = (a1 >= 1.0) & (a2 >= 1.0)
+        safe = np.empty(E1.size, bool)
+        safe[intact] = self._safe["intact"][i[intact], j[intact]]
+        safe[~intact] = self._safe["damaged"][i[~intact], j[~intact]]
+        return safe
+
     def _frozen(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False):
         """Table values at frozen damage, forces scaled by alpha_max (damage scaling)."""
         amax = np.maximum(a1, a2)
@@ -416,8 +436,18 @@ class Surrogate:
                                                 ("alpha1_hist", "alpha2_hist"))
         alpha = np.stack((a1h, a2h), axis=1)
         hist = alpha.copy()
-        vals = self._frozen(E1, E2, a1h, a2h)
-        target = self._target(vals, hist)
+        if return_mu:
+            vals = self._frozen(E1, E2, a1h, a2h)
+            target = self._target(vals, hist)
+        else:
+            # Points in cells whose stretches stay well below mu_crit need no stretch at all.
+            vals = np.full((E1.size, 4), np.nan)
+            vals[:, :2] = self._frozen(E1, E2, a1h, a2h, ("P1", "P2"))
+            risk = np.flatnonzero(~self._below_damage(E1, E2, a1h, a2h))
+            target = hist.copy()
+            if risk.size:
+                vals[risk] = self._frozen(E1[risk], E2[risk], a1h[risk], a2h[risk])
+                target[risk] = self._target(vals[risk], hist[risk])
         todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
         self.last_damaging = todo.size
         if todo.size:
