@@ -159,3 +159,17 @@ def test_bad_construction_raises():
         Surrogate(FABRIC, resolution=0.0)
     with pytest.raises(ValueError, match="order"):
         Surrogate(FABRIC, order=2)
+
+
+def test_skipping_the_stretch_lookup_below_damage_changes_nothing(sur):
+    """update() skips mu where no table node is near mu_crit; the full path must agree."""
+    rng = np.random.default_rng(4)
+    n = 3000
+    E1 = rng.uniform(-0.01, 0.07, n)
+    E2 = rng.uniform(-0.01, 0.05, n)
+    hist = np.where(rng.random((n, 2)) < 0.5, 1.0, rng.uniform(0.2, 1.0, (n, 2)))
+    fast = sur.update(E1, E2, hist[:, 0], hist[:, 1])
+    full = sur.update(E1, E2, hist[:, 0], hist[:, 1], return_mu=True)[:4]
+    for a, b in zip(fast, full):
+        np.testing.assert_array_equal(a, b)
+    assert 0 < sur._below_damage(E1, E2, hist[:, 0], hist[:, 1]).mean() < 1
