@@ -13,7 +13,7 @@ Strains beyond the table:
   * E_i above E_i^fail = ((mu_i^complete L_i / w_i)^2 - 1) / 2: the yarn is certainly broken,
     because mu_i^max >= lambda_i w_i / L_i (its projected length cannot exceed its stretched
     length), so alpha_i = 0 exactly; this is not an extrapolation.
-  * E_i below the table's lower end (compression beyond -0.03 by default): the lookup uses
+  * E_i below the table's lower end (compression beyond -0.06 by default, which scenario 4's free fill reaches): the lookup uses
     the lower end; such points are counted and reported.
 Stresses returned by ``evaluate`` and ``update`` are tension-only (P_i >= 0): a fabric
 wrinkles instead of carrying compression.
@@ -94,7 +94,7 @@ class Surrogate:
     """
 
     def __init__(self, fabric: Fabric, resolution: float = 0.001, r_nodes: int = 11, order: int = 3,
-                 E_min: float = -0.03, n_elements: int | None = None, tile: int = 16,
+                 E_min: float = -0.06, n_elements: int | None = None, tile: int = 16,
                  cache_dir: str | Path | None | bool = None, workers: int | None = None,
                  progress: bool = True):
         if not isinstance(fabric, Fabric):
@@ -507,3 +507,10 @@ class Surrogate:
         return (f"surrogate {self.key}: h = {self.h:g}, r nodes = {self.r_nodes}, order = {self.order}, "
                 f"E in [{self.E_table[0]:g}, {self.E_table[1]:g}] ({self.nE} nodes per axis with ghosts), "
                 f"tiles built {built} of {self.n_tiles ** 2} per layer, cache {self.cache_dir}")
+
+
+def material_point(fabric: Fabric, **settings) -> Surrogate:
+    """A surrogate used as a material point of the static scenes (``--via surrogate``): its
+    :meth:`Surrogate.respond` gives signed stresses, so the free-fill root find can see P2 < 0."""
+    return Surrogate(fabric, **settings)
+
