@@ -22,7 +22,7 @@ PIP := $(PY) -m pip
 STAMP := $(VENV)/.fabric_fenicsx-installed
 PIP_FLAGS ?= --progress-bar off
 
-DEMO_CMD ?= $(VENV)/bin/fabric-fenicsx static --scenario uniaxial-strain --out out/static
+DEMO_CMD ?= $(VENV)/bin/fabric-fenicsx impact demos/scenes/y90.toml --out out/impact-y90 --set projectile.velocity=57.3
 PYTEST_ARGS ?= -q tests
 
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)

@@ -1,0 +1,374 @@
+"""Impact scene files: TOML schema, defaults, validation and ``--set section.key=value`` overrides.
+
+A scene describes one ballistic impact of the thesis's chapter 4: the fabric, its material
+orientation and damage switch, the mesh, the projectile (Sec. 4.1, 4.4.3), the clamped edges
+(Table 3) and the run and output controls. Every key has a default, so a scene file only
+states what differs; ``demos/scenes/{y0,y90,xy0,xy45}.toml`` are the four set-ups named as in
+Table 3. Units are SI (m, kg, s, m/s); the material angle is in degrees.
+
+Validation happens before any work: an unknown section or key, a value of the wrong type or
+out of range raises :class:`SceneError` with a message listing what is valid. Nothing here
+imports DOLFINx.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import tomllib
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any, Callable
+
+__all__ = ["SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "load_scene", "parse_override",
+           "describe_schema"]
+
+EDGES = ("left", "right", "bottom", "top")
+"""Edge names: x = -side/2, x = +side/2, y = -side/2, y = +side/2 (global X-Y, Table 3)."""
+
+FIELDS = ("displacement", "velocity", "P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3")
+"""Fields the XDMF time series can hold: nodal displacement and velocity, and cell-wise
+(area-weighted cell averages of the quadrature points) yarn stresses P1, P2 (N/m), yarn
+strains E1, E2 and the state variables of Table 2 (SDV1 = 0 for a removed cell)."""
+
+FABRICS = ("zylon_as",)
+
+
+class SceneError(ValueError):
+    """A scene file or override is invalid; the message says what is valid."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Key:
+    """One scene key: its default, a converter/validator and a one-line meaning."""
+
+    default: Any
+    check: Callable[[str, Any], Any]
+    doc: str
+
+
+# ----------------------------------------------------------------------------- checkers
+def _type_name(value: Any) -> str:
+    return type(value).__name__
+
+
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"{name} = {value!r} ({_type_name(value)}): must be a number")
+    x = float(value)
+    if not math.isfinite(x):
+        raise SceneError(f"{name} = {value!r}: must be finite")
+    return x
+
+
+def number(lo: float | None = None, hi: float | None = None, lo_open: bool = False,
+           hi_open: bool = False, unit: str = "") -> Callable[[str, Any], float]:
+    def check(name: str, value: Any) -> float:
+        x = _number(name, value)
+        bad_lo = lo is not None and (x <= lo if lo_open else x < lo)
+        bad_hi = hi is not None and (x >= hi if hi_open else x > hi)
+        if bad_lo or bad_hi:
+            left = "-inf" if lo is None else f"{lo:g}"
+            right = "inf" if hi is None else f"{hi:g}"
+            interval = f"{'(' if lo_open or lo is None else '['}{left}, {right}{')' if hi_open or hi is None else ']'}"
+            raise SceneError(f"{name} = {value!r}: must lie in {interval}{' ' + unit if unit else ''}")
+        return x
+    check.kind = f"number{' (' + unit + ')' if unit else ''}"
+    return check
+
+
+def integer(lo: int = 0) -> Callable[[str, Any], int]:
+    def check(name: str, value: Any) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise SceneError(f"{name} = {value!r} ({_type_name(value)}): must be an integer")
+        if value < lo:
+            raise SceneError(f"{name} = {value!r}: must be an integer >= {lo}")
+        return int(value)
+    check.kind = f"integer >= {lo}"
+    return check
+
+
+def boolean(name: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise SceneError(f"{name} = {value!r} ({_type_name(value)}): must be true or false")
+    return value
+
+
+boolean.kind = "true/false"
+
+
+def choice(*options: str) -> Callable[[str, Any], str]:
+    def check(name: str, value: Any) -> str:
+        if value not in options:
+            raise SceneError(f"{name} = {value!r}: must be one of {list(options)}")
+        return value
+    check.kind = " | ".join(options)
+    return check
+
+
+def optional_text(name: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise SceneError(f"{name} = {value!r} ({_type_name(value)}): must be a string (\"\" for none)")
+    return value
+
+
+optional_text.kind = "string"
+
+
+def subset(options: tuple[str, ...], allow_empty: bool = False) -> Callable[[str, Any], list[str]]:
+    def check(name: str, value: Any) -> list[str]:
+        if isinstance(value, str):
+            value = [value]
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise SceneError(f"{name} = {value!r}: must be a list of names from {list(options)}")
+        bad = [v for v in value if v not in options]
+        if bad:
+            raise SceneError(f"{name} = {value!r}: unknown {bad}; valid names are {list(options)}")
+        if len(set(value)) != len(value):
+            raise SceneError(f"{name} = {value!r}: names must not repeat")
+        if not value and not allow_empty:
+            raise SceneError(f"{name} = []: needs at least one of {list(options)}")
+        return list(value)
+    check.kind = f"list from {list(options)}"
+    return check
+
+
+# ----------------------------------------------------------------------------- schema
+SCHEMA: dict[str, dict[str, Key]] = {
+    "fabric": {
+        "name": Key("zylon_as", choice(*FABRICS),
+                    "built-in fabric: zylon_as = 500 denier PBO Zylon AS, Table 1"),
+        "file": Key("", optional_text,
+                    "TOML fabric file (fabric_fenicsx.materials.Fabric.load) used instead of name; "
+                    "relative to the scene file"),
+        "bending": Key("max", choice("max", "min"),
+                       "bending stiffness bound of the built-in fabric (Table 1, Sec. 3.2)"),
+    },
+    "material": {
+        "angle": Key(0.0, number(-360.0, 360.0, unit="deg"),
+                     "warp (yarn 1) direction from global X, degrees (Table 3: 0 for Y0/XY0, "
+                     "90 for Y90, 45 for XY45)"),
+        "damage": Key(True, boolean,
+                      "damage evolution (Eq. 2-25) and cell deletion; false = intact yarns, the "
+                      "surrogate is asked with alpha = 1 only"),
+        "erosion_strain": Key(1.0, number(0.0, lo_open=True),
+                              "Green strain of a yarn direction beyond which a cell is eroded "
+                              "(no longer a unit cell; see fabric_fenicsx.impact)"),
+        "surrogate_cache": Key("", optional_text,
+                               "directory of the surrogate's tile cache (\"\" = its default)"),
+    },
+    "mesh": {
+        "kind": Key("graded", choice("graded", "uniform"),
+                    "graded = gmsh quadrilaterals fine at the centre; uniform = n x n squares"),
+        "side": Key(0.27305, number(0.0, lo_open=True, unit="m"),
+                    "side of the square fabric (10.75 in, Sec. 4.1)"),
+        "h_centre": Key(2.0e-3, number(0.0, lo_open=True, unit="m"),
+                        "element size within refine_radius of the impact point (graded)"),
+        "h_edge": Key(8.0e-3, number(0.0, lo_open=True, unit="m"),
+                      "element size far from the centre (graded)"),
+        "refine_radius": Key(0.02, number(0.0, unit="m"), "radius kept at h_centre (graded)"),
+        "grading": Key(0.1, number(0.0, 1.0, lo_open=True), "size growth per unit distance (graded)"),
+        "n": Key(64, integer(2), "cells per side (uniform)"),
+        "quadrature_degree": Key(2, integer(1), "quadrature degree of P1, P2 (2 = 2 x 2 Gauss points)"),
+    },
+    "projectile": {
+        "diameter": Key(0.0254, number(0.0, lo_open=True, unit="m"),
+                        "diameter (not stated in the thesis; 1 in assumed)"),
+        "length": Key(0.0093, number(0.0, lo_open=True, unit="m"),
+                      "length (37.1 g of steel at 25.4 mm diameter)"),
+        "fillet": Key(0.0, number(0.0, unit="m"), "fillet radius of the impacting edge (0, 0.8e-3, 2e-3 in Sec. 4.4.3)"),
+        "mass": Key(0.0371, number(0.0, lo_open=True, unit="kg"), "mass (37.1 g, Sec. 4.1)"),
+        "velocity": Key(57.3, number(0.0, lo_open=True, unit="m/s"),
+                        "initial velocity, normal to the fabric at its centre (Table 4: 34.5, 39.78, "
+                        "57.3, 83.06, 123.69)"),
+        "friction": Key(0.5, number(0.0, unit=""), "Coulomb friction projectile/fabric (0.5; 0.1 and 2.0 in Sec. 4.4.1)"),
+        "standoff": Key(0.2e-3, number(0.0, lo_open=True, unit="m"),
+                        "initial gap between the impacting face and the fabric"),
+        "contact_damping": Key(1.0, number(0.0, 2.0),
+                               "damping ratio of the node-on-penalty oscillator (1 = critical, "
+                               "nearly plastic node impacts; fabric_fenicsx.fem.projectile)"),
+        "penalty_fraction": Key(0.5, number(0.0, 0.5, lo_open=True),
+                                "penalty stiffness as a fraction of its stability limit for the nodal mass and dt"),
+    },
+    "boundary": {
+        "clamped": Key(["bottom", "top"], subset(EDGES),
+                       "clamped edges: Y0/Y90 = [bottom, top] (normal to global Y), XY0/XY45 = all four"),
+    },
+    "run": {
+        "t_end": Key(3.0e-3, number(0.0, lo_open=True, unit="s"),
+                     "time limit (the run also ends on perforation or rebound)"),
+        "dt_safety": Key(0.8, number(0.0, 1.0, lo_open=True),
+                         "time step = dt_safety x stable limit (smallest cell, largest wave speed)"),
+        "dt_check_interval": Key(10, integer(1), "steps between re-checks of the stable time step"),
+        "damping": Key(0.1, number(0.0, 1.0),
+                       "stiffness-proportional damping as a fraction of critical at the highest mesh "
+                       "frequency of the straight intact yarns (0.1: see fabric_fenicsx.impact)"),
+        "release_time": Key(20.0e-6, number(0.0, lo_open=True, unit="s"),
+                            "time without contact after which a perforation or rebound is final"),
+        "max_steps": Key(0, integer(0), "stop after this many steps (0 = no limit)"),
+        "energy_tolerance": Key(0.05, number(0.0, lo_open=True),
+                                "with damage off, a relative energy-balance error above this stops the run"),
+    },
+    "output": {
+        "xdmf_interval": Key(5.0e-5, number(0.0, unit="s"),
+                             "simulated time between XDMF frames (0 = no XDMF file)"),
+        "fields": Key(list(FIELDS), subset(FIELDS, allow_empty=True), "fields in the XDMF file"),
+        "history_interval": Key(1.0e-6, number(0.0, lo_open=True, unit="s"),
+                                "simulated time between rows of history.csv"),
+        "png": Key(True, boolean, "write velocity_history.png and damage_map.png at the end"),
+        "progress_interval": Key(5.0, number(0.0, unit="s"),
+                                 "wall seconds between progress lines on rank 0 (0 = none)"),
+    },
+}
+TOP_LEVEL = {"description": "free text describing the scene"}
+
+
+def describe_schema(section: str | None = None) -> str:
+    """Every section and key with its default, type and meaning (for error messages and --help)."""
+    lines = []
+    for sec, keys in SCHEMA.items():
+        if section is not None and sec != section:
+            continue
+        lines.append(f"[{sec}]")
+        for name, key in keys.items():
+            kind = getattr(key.check, "kind", "")
+            lines.append(f"  {name} = {_toml_value(key.default)}   # {kind}: {key.doc}")
+    return "\n".join(lines)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return repr(v)
+
+
+# ----------------------------------------------------------------------------- scene
+class Scene:
+    """A validated scene: ``scene.projectile.velocity``, ``scene["run"]["t_end"]``,
+    ``scene.to_dict()`` (plain dict of every section, defaults filled in)."""
+
+    def __init__(self, data: dict[str, dict[str, Any]], source: str = "<defaults>",
+                 description: str = ""):
+        self._data = data
+        self.source = source
+        self.description = description
+        for sec, values in data.items():
+            setattr(self, sec, SimpleNamespace(**values))
+
+    def __getitem__(self, section: str) -> dict[str, Any]:
+        return self._data[section]
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        return copy.deepcopy(self._data)
+
+    @property
+    def name(self) -> str:
+        return Path(self.source).stem if self.source != "<defaults>" else "scene"
+
+    def __repr__(self) -> str:
+        return f"Scene({self.source!r})"
+
+
+def parse_override(text: str) -> tuple[str, str, Any]:
+    """``"section.key=value"`` -> (section, key, value). The value is read as a TOML value
+    (numbers, true/false, "strings", [lists]); a bare word that is not TOML is a string."""
+    if "=" not in text:
+        raise SceneError(f"--set {text!r}: expected section.key=value, e.g. projectile.velocity=57.3")
+    lhs, rhs = text.split("=", 1)
+    parts = lhs.strip().split(".")
+    if len(parts) != 2 or not all(parts):
+        raise SceneError(f"--set {text!r}: the key must be section.key, e.g. projectile.velocity; "
+                         f"sections are {list(SCHEMA)}")
+    rhs = rhs.strip()
+    try:
+        value = tomllib.loads(f"v = {rhs}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = rhs
+    return parts[0], parts[1], value
+
+
+def _check_section(section: str, values: dict[str, Any], where: str) -> None:
+    if section not in SCHEMA:
+        raise SceneError(f"{where}: unknown section [{section}]; valid sections are {list(SCHEMA)}"
+                         + (f" (and top-level keys {list(TOP_LEVEL)})" if TOP_LEVEL else ""))
+    if not isinstance(values, dict):
+        raise SceneError(f"{where}: [{section}] must be a table of keys, got {values!r}")
+    for key in values:
+        if key not in SCHEMA[section]:
+            raise SceneError(f"{where}: unknown key {section}.{key}; valid keys of [{section}]:\n"
+                             + describe_schema(section))
+
+
+def build_scene(raw: dict[str, Any], overrides: list[str] | tuple[str, ...] = (),
+                source: str = "<defaults>") -> Scene:
+    """Validate a raw scene dict (as read from TOML) with ``section.key=value`` overrides
+    applied on top, and fill in the defaults. Raises :class:`SceneError`."""
+    description = ""
+    merged: dict[str, dict[str, Any]] = {}
+    for sec, values in raw.items():
+        if sec in TOP_LEVEL and not isinstance(values, dict):
+            if sec == "description":
+                if not isinstance(values, str):
+                    raise SceneError(f"{source}: description = {values!r}: must be a string")
+                description = values
+            continue
+        _check_section(sec, values, source)
+        merged.setdefault(sec, {}).update(values)
+    for text in overrides:
+        sec, key, value = parse_override(text)
+        _check_section(sec, {key: value}, f"--set {text!r}")
+        merged.setdefault(sec, {})[key] = value
+
+    data: dict[str, dict[str, Any]] = {}
+    for sec, keys in SCHEMA.items():
+        data[sec] = {}
+        given = merged.get(sec, {})
+        for name, key in keys.items():
+            value = given.get(name, copy.deepcopy(key.default))
+            data[sec][name] = key.check(f"{sec}.{name}", value)
+    _cross_check(data)
+    return Scene(data, source, description)
+
+
+def _cross_check(d: dict[str, dict[str, Any]]) -> None:
+    m, p = d["mesh"], d["projectile"]
+    if m["kind"] == "graded":
+        if m["h_centre"] > m["h_edge"]:
+            raise SceneError(f"mesh.h_centre = {m['h_centre']!r}: must not exceed mesh.h_edge = {m['h_edge']!r}")
+        if m["h_edge"] > m["side"] / 2:
+            raise SceneError(f"mesh.h_edge = {m['h_edge']!r}: must be <= mesh.side / 2 = {m['side'] / 2!r}")
+    limit = min(p["diameter"], p["length"]) / 2
+    if p["fillet"] > limit:
+        raise SceneError(f"projectile.fillet = {p['fillet']!r}: must be <= min(diameter, length) / 2 = {limit!r}")
+    if p["diameter"] >= m["side"]:
+        raise SceneError(f"projectile.diameter = {p['diameter']!r}: must be smaller than mesh.side = {m['side']!r}")
+
+
+def load_scene(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+    """Read and validate a scene TOML file (``None``: defaults only) with overrides."""
+    if path is None:
+        return build_scene({}, overrides)
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            raw = tomllib.load(f)
+    except FileNotFoundError:
+        raise SceneError(f"scene file {str(path)!r} not found") from None
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {err}") from None
+    scene = build_scene(raw, overrides, str(path))
+    fab = scene["fabric"]
+    if fab["file"]:
+        f = Path(fab["file"])
+        if not f.is_absolute():
+            f = path.parent / f
+        if not f.is_file():
+            raise SceneError(f"fabric.file = {fab['file']!r}: no such file ({f})")
+        fab["file"] = str(f)
+        scene.fabric.file = str(f)
+    return scene

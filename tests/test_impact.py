@@ -1,0 +1,275 @@
+"""The impact driver (fabric_fenicsx.impact) on tiny scenes: contact coupled to the membrane,
+friction, cell deletion, the energy balance with damage off, the end of a run, trouble
+messages and serial against 2-rank runs.
+
+The tiny scene is an 8 cm Y90-like square of 16 x 16 cells hit by a light 20 mm projectile;
+with damage off it only needs the surrogate's intact layer near zero strain.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fabric_fenicsx.fem.projectile import ProjectileState
+from fabric_fenicsx.impact import (ImpactError, ImpactSimulation, chatter_statistics, run_impact,
+                                   straight_yarn_modulus)
+from fabric_fenicsx.scene import build_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TINY = {
+    "description": "tiny test scene",
+    "material": {"angle": 90.0, "damage": False},
+    "mesh": {"kind": "uniform", "side": 0.08, "n": 16},
+    "projectile": {"diameter": 0.02, "velocity": 20.0, "mass": 0.005},
+    "boundary": {"clamped": ["bottom", "top"]},
+    "run": {"t_end": 3e-4},
+    "output": {"xdmf_interval": 0.0, "png": False, "progress_interval": 0.0},
+}
+
+
+def tiny(overrides=(), raw=None):
+    return build_scene(raw or TINY, list(overrides), "tiny.toml")
+
+
+def pressed(tmp_path, depth=1e-4, overrides=()):
+    """A simulation whose projectile face sits `depth` below the flat fabric, at rest: every
+    node under the face is inside the solid."""
+    sim = ImpactSimulation(tiny(overrides), tmp_path / "out", verbose=False)
+    sim.state = ProjectileState(z=-depth, vz=0.0, mass=sim.state.mass)
+    sim.books.z_max = 0.0
+    r = np.hypot(sim.X[:, 0], sim.X[:, 1])
+    inside = r < sim.projectile.radius
+    return sim, inside
+
+
+def test_contact_pushes_nodes_out_of_the_projectile(tmp_path):
+    sim, inside = pressed(tmp_path)
+    assert inside.sum() >= 4
+    f_ext, f_p, info = sim._contact(sim.dt)
+    f = f_ext.reshape(-1, 3)
+    assert info["n_active"] == inside.sum()
+    assert np.all(f[inside, 2] < 0) and np.all(f[~inside] == 0)   # out through the face (-z)
+    assert f_p[2] == pytest.approx(-f[:, 2].sum())                # action = reaction
+    depth0 = info["max_penetration"]
+    for _ in range(60):   # the projectile held still: the fabric is pushed out of it, until the
+        f_ext, _, info = sim._contact(sim.dt)   # penalty balances the membrane pulling back
+        sim.material.dt_prev = sim.cd._dt_prev
+        sim.cd.step(sim.dt, f_ext)
+    z = sim.X[:, 2] + sim.cd.u[2::3]
+    assert info["max_penetration"] < 0.3 * depth0
+    assert np.all(z[inside] < -0.7 * depth0)
+    assert np.all(z[~inside] > sim.state.z)              # nothing else went through the face
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5, 2.0])
+def test_friction_opposes_sliding_and_obeys_coulomb(tmp_path, mu):
+    sim, inside = pressed(tmp_path, overrides=[f"projectile.friction={mu}"])
+    v = sim.cd.v.reshape(-1, 3)
+    v[:, 0] = 1.0    # the fabric slides along +x under the face
+    v[:, 1] = -0.5
+    v[sim.cd.clamped // 3] = 0.0
+    f_ext, _, info = sim._contact(sim.dt)
+    f = f_ext.reshape(-1, 3)[inside]
+    ft, fn = f[:, :2], -f[:, 2]
+    assert np.all(fn > 0)
+    if mu == 0.0:
+        assert np.all(ft == 0)
+        return
+    slip = np.array([1.0, -0.5])
+    assert np.all(ft @ slip < 0)                                   # opposes the sliding
+    assert np.allclose(np.cross(ft, slip), 0.0, atol=1e-9 * np.abs(ft).max())  # along it
+    assert np.all(np.linalg.norm(ft, axis=1) <= mu * fn * (1 + 1e-12))     # Coulomb cone
+
+
+def test_no_contact_search_before_the_projectile_can_reach(tmp_path):
+    sim = ImpactSimulation(tiny(["projectile.standoff=0.005"]), tmp_path / "out", verbose=False)
+    calls = []
+    forces = sim.contact.forces
+    sim.contact.forces = lambda *a, **k: calls.append(1) or forces(*a, **k)
+    f_ext, f_p, _ = sim._contact(sim.dt)
+    assert f_ext is None and not calls and np.all(f_p == 0)
+
+
+def test_deleted_cell_carries_no_force(tmp_path):
+    sim = ImpactSimulation(tiny(["material.damage=true"]), tmp_path / "out", verbose=False)
+    m, mat, cd = sim.membrane, sim.material, sim.cd
+    # a uniform 1 % stretch of both yarns: every cell stressed alike
+    m.set_displacement(m.interpolate_owned(lambda x: np.vstack([0.01 * x[0], 0.01 * x[1], 0 * x[0]])))
+    cells = m.V.dofmap.list.array.reshape(-1, 4)[:m.n_cells]
+    centre = np.hypot(*m.V.tabulate_dof_coordinates()[:, :2].T)
+    c = int(np.argmin(centre[cells].max(axis=1)))         # an interior cell at the centre
+    npc = m.n_points_per_cell
+
+    def force():
+        E1, E2 = m.yarn_strains()
+        P1, P2, a1, a2 = mat.update(E1, E2, mat.alpha1, mat.alpha2)
+        m.set_stress(P1, P2)
+        return m.internal_force(), P1, P2
+
+    f_live, P1, _ = force()
+    assert np.all(P1[c * npc:(c + 1) * npc] > 0)
+    mat.alpha1[c * npc:(c + 1) * npc] = 0.0     # both yarns broken at all its points: SDV1 = 0
+    mat.alpha2[c * npc:(c + 1) * npc] = 0.0
+    delete, erode = sim._removal()
+    assert list(delete) == [c] and erode.size == 0
+    sim._remove(delete, erode)
+    sim._update_live_nodes()
+    f_dead, P1, P2 = force()
+    assert np.all(P1[c * npc:(c + 1) * npc] == 0) and np.all(P2[c * npc:(c + 1) * npc] == 0)
+    diff = np.abs(f_live - f_dead).reshape(-1, 3).sum(axis=1)
+    touched = np.flatnonzero(diff > 1e-9 * np.abs(f_live).max())
+    assert set(touched) <= set(cells[c])                  # only the cell's own nodes change
+    assert len(touched) > 0
+    # its nodes stay in contact through the neighbouring live cells
+    assert sim.live_nodes[cells[c]].all()
+
+
+def test_erosion_takes_out_cells_stretched_beyond_the_unit_cell(tmp_path):
+    sim = ImpactSimulation(tiny(["material.damage=true", "material.erosion_strain=1.0"]),
+                           tmp_path / "out", verbose=False)
+    mat, npc = sim.material, sim.npc
+    mat.E1[5 * npc + 2] = 1.5      # one point of cell 5: warp direction beyond the erosion strain
+    mat.E2[9 * npc:10 * npc] = 0.9  # cell 9: below it everywhere
+    mat.alpha1[5 * npc + 2] = 0.0   # its warp broken, the fill alive: not deletable (SDV1 = 1)
+    delete, erode = sim._removal()
+    assert delete.size == 0 and list(erode) == [5]
+    sim._remove(delete, erode)
+    assert not sim.live_cells[5] and sim.eroded_cells[5] and not mat.live[5 * npc:6 * npc].any()
+    assert mat.live.sum() == mat.live.size - npc
+    strain, one = np.full(mat.w.size, 0.01), np.ones(mat.w.size)
+    P1, P2, _, _ = mat.update(strain, strain, one, one)   # uniform 1 %: stressed, except cell 5
+    assert np.all(P1[5 * npc:6 * npc] == 0) and np.all(P2[5 * npc:6 * npc] == 0)
+    assert np.all(P1[mat.live] > 0) and np.all(P2[mat.live] > 0)
+
+
+def test_wrinkled_yarns_carry_nothing_and_do_not_set_the_time_step(tmp_path):
+    sim = ImpactSimulation(tiny(), tmp_path / "out", verbose=False)
+    mat = sim.material
+    n = mat.w.size
+    one = np.ones(n)
+    # biaxial compression near a jump of the unit cell's compressive branch: all slack
+    E1, E2 = np.full(n, -0.046), np.linspace(-0.031, -0.027, n)
+    P1, P2, _, _ = mat.update(E1, E2, one, one)
+    assert np.all(P1 == 0) and np.all(P2 == 0)
+    assert mat.wave_modulus() == 0.0
+    # crimp interchange: a stretched warp keeps the compressed fill taut
+    E1, E2 = np.full(n, 0.03), np.full(n, -0.01)
+    P1, P2, _, _ = mat.update(E1, E2, one, one)
+    assert np.all(P1 > 0) and np.all(P2 > 0)
+    assert 0 < mat.wave_modulus() <= 1.05 * straight_yarn_modulus(sim.fabric)
+
+
+def test_path_energy_is_the_unit_cell_energy_in_tension(tmp_path):
+    sim = ImpactSimulation(tiny(), tmp_path / "out", verbose=False)
+    mat, sur = sim.material, sim.surrogate
+    E1 = np.array([0.0, 0.01, 0.03, 0.02, 0.004])
+    E2 = np.array([0.0, 0.0, 0.005, 0.02, 0.012])
+    one = np.ones(E1.size)
+    psi = sur._frozen(E1, E2, one, one, ("Psi",))[:, 0]
+    W = mat.path_energy(E1, E2, one, one)
+    assert W[0] == 0.0
+    assert W[1:] == pytest.approx(psi[1:], rel=2e-3)
+
+
+def test_energy_balance_with_damage_off_and_outputs(tmp_path):
+    out = tmp_path / "run"
+    scene = tiny(["run.t_end=2.5e-4", "output.xdmf_interval=1e-4", "output.png=true",
+                  "output.fields=[\"displacement\", \"SDV1\", \"P1\"]", "output.history_interval=5e-6"])
+    s = run_impact(scene, out, verbose=False)
+    e = s["energies"]
+    assert s["end_reason"] == "time_limit"
+    assert s["energy_error"] < 0.01
+    # every ingredient of the balance took part, and they add up to the projectile's loss
+    for k in ("fabric_kinetic", "internal_work", "contact_dissipation", "viscous_dissipation"):
+        assert e[k] > 0, k
+    assert e["damage_dissipation"] == 0 and s["deleted_cells"] == 0 and s["eroded_cells"] == 0
+    loss = e["projectile_kinetic_0"] - e["projectile_kinetic"]
+    parts = e["fabric_kinetic"] + e["internal_work"] + e["penalty_energy"] + e["contact_dissipation"]
+    assert parts == pytest.approx(loss, abs=0.01 * e["projectile_kinetic_0"])
+    assert s["absorbed_energy"] == pytest.approx(loss)
+    assert s["surrogate"]["points_beyond_table_damage_off"] == 0
+    # outputs
+    for name in ("summary.json", "history.csv", "impact.xdmf", "impact.h5", "velocity_history.png",
+                 "damage_map.png"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("v0", "residual_velocity", "perforated", "absorbed_energy", "max_deflection",
+                "energy_error", "wall_time_s", "n_cells", "n_steps", "dt", "n_ranks"):
+        assert key in summary, key
+    assert summary["n_cells"] == 256 and summary["n_ranks"] == 1
+    header = (out / "history.csv").read_text().splitlines()[0].split(",")
+    for col in ("time", "projectile_z", "projectile_velocity", "contact_force", "fabric_kinetic",
+                "stored_energy", "damage_dissipation", "deleted_cells"):
+        assert col in header
+    xdmf = (out / "impact.xdmf").read_text()
+    assert 'Name="displacement"' in xdmf and 'Name="SDV1"' in xdmf and 'Name="velocity"' not in xdmf
+
+
+def test_damage_off_asks_only_the_intact_layer(tmp_path):
+    sim = ImpactSimulation(tiny(["run.max_steps=150"]), tmp_path / "out", verbose=False)
+    sim.run()
+    assert sim.surrogate.built["intact"].any()
+    assert not sim.surrogate.built["damaged"].any()
+
+
+def test_rebound_ends_the_run_with_a_negative_residual_velocity(tmp_path):
+    s = run_impact(tiny(["run.t_end=2e-3", "projectile.mass=0.002", "mesh.n=10"]), tmp_path / "out",
+                   verbose=False)
+    assert s["end_reason"] == "rebound"
+    assert not s["perforated"]
+    assert -20.0 < s["residual_velocity"] < 0.0
+    assert s["energy_error"] < 0.01
+
+
+def test_trouble_stops_with_step_place_and_fix(tmp_path):
+    with pytest.raises(ImpactError, match=r"(?s)step \d+, t = .*energy balance error.*reference \(x, y\)"
+                                          r".*Likely fixes"):
+        run_impact(tiny(["run.energy_tolerance=1e-9"]), tmp_path / "out", verbose=False)
+
+
+def test_chatter_statistics():
+    t = np.arange(0, 100e-6, 0.1e-6)
+    f = np.where(t > 10e-6, 100.0, 0.0)
+    f[(t > 10e-6) & (t < 10.5e-6)] = 1000.0       # a first-touch spike
+    f[::20] = np.where(f[::20] > 0, 300.0, 0.0)    # a peak of 3x the plateau every 2 us
+    s = chatter_statistics(t, f, window=10e-6, first=5e-6)
+    assert s["first_touch_peak_N"] == 1000.0
+    # each 10 us window: 5 peaks of 300 among 100 samples of 100 -> mean 110, ratio 300 / 110
+    assert s["window_peak_over_mean_median"] == pytest.approx(300 / 110, rel=0.02)
+    assert s["window_peak_over_mean_max"] >= s["window_peak_over_mean_median"]
+    assert chatter_statistics(t, 0 * t)["first_touch_peak_N"] == 0.0
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
+def test_serial_and_two_ranks_agree(tmp_path):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(
+        'description = "tiny"\n[material]\nangle = 90.0\ndamage = false\n'
+        '[mesh]\nkind = "uniform"\nside = 0.08\nn = 16\n'
+        '[projectile]\ndiameter = 0.02\nvelocity = 20.0\nmass = 0.005\n'
+        '[boundary]\nclamped = ["bottom", "top"]\n[run]\nmax_steps = 400\n'
+        '[output]\nxdmf_interval = 0.0\npng = false\nprogress_interval = 0.0\n')
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1",
+               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", str(scene), "--quiet"]
+    summaries = []
+    for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
+        out = tmp_path / f"np{n}"
+        proc = subprocess.run(prefix + cmd + ["--out", str(out)], env=env, cwd=tmp_path,
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        summaries.append(json.loads((out / "summary.json").read_text()))
+    s1, s2 = summaries
+    assert s2["n_ranks"] == 2 and s1["n_steps"] == s2["n_steps"] == 400
+    assert s1["n_cells"] == s2["n_cells"]
+    assert s2["residual_velocity"] == pytest.approx(s1["residual_velocity"], rel=1e-6)
+    assert s2["energies"]["fabric_kinetic"] == pytest.approx(s1["energies"]["fabric_kinetic"], rel=1e-5)
+    assert s1["v0"] - s1["residual_velocity"] > 0.1      # the fabric did slow the projectile
