@@ -178,7 +178,7 @@ class YarnStress:
         """P1, P2 of intact yarns (alpha = 1: the surrogate's intact layer only), tension-only."""
         self.beyond_table += int(np.count_nonzero((E1 > self.E_hi) | (E2 > self.E_hi)))
         one = np.ones(E1.size)
-        vals = self.sur._frozen(self._clip(E1), self._clip(E2), one, one, ("P1", "P2"))
+        vals = self.sur.lookup(self._clip(E1), self._clip(E2), one, one, ("P1", "P2"))
         return np.maximum(vals[:, 0], 0.0), np.maximum(vals[:, 1], 0.0)
 
     def slack(self, E1, E2) -> tuple[np.ndarray, np.ndarray]:
@@ -282,7 +282,7 @@ class YarnStress:
         E1, E2 = self._clip(E1), self._clip(E2)
         a1 = self.alpha1[idx] if self.damage else np.ones(idx.size)
         a2 = self.alpha2[idx] if self.damage else np.ones(idx.size)
-        vals, d1, d2 = self.sur._frozen(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
+        vals, d1, d2 = self.sur.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
         lam1, lam2 = np.sqrt(1 + 2 * E1), np.sqrt(1 + 2 * E2)
         # Only a yarn that can carry tension has stiffness: not a broken one, not a slack one,
         # and not a compressed one whose unit-cell P_i <= 0 (tension-only). The unit cell's

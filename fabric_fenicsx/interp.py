@@ -66,7 +66,15 @@ def power_matrix(order: int) -> np.ndarray:
 
 def powers(t: np.ndarray, order: int, derivative: bool = False) -> np.ndarray:
     """[1, t, ..., t^order] (npts, order+1), or its derivative d/dt."""
-    p = np.arange(order + 1)
+    T = np.empty((t.size, order + 1))
     if not derivative:
-        return t[:, None] ** p[None, :]
-    return np.where(p[None, :] > 0, p[None, :] * t[:, None] ** np.maximum(p[None, :] - 1, 0), 0.0)
+        T[:, 0] = 1.0
+        for p in range(1, order + 1):
+            np.multiply(T[:, p - 1], t, out=T[:, p])
+        return T
+    T[:, 0] = 0.0
+    if order >= 1:
+        T[:, 1] = 1.0
+    for p in range(2, order + 1):
+        T[:, p] = T[:, p - 1] * t * (p / (p - 1))  # p t^(p-1) from (p-1) t^(p-2)
+    return T

@@ -78,7 +78,8 @@ class Surrogate:
     Parameters
     ----------
     fabric : the fabric.
-    resolution : grid spacing h of E1 and E2.
+    resolution : grid spacing h of E1 and E2 (default 0.002: the cheapest table of the
+        surrogate report within the 0.5 % stress tolerance; see docs/surrogate.md).
     r_nodes : nodes of the relative integrity r = alpha_min / alpha_max in [0, 1], uniform
         in sqrt(r).
     order : interpolation order in (E1, E2): 3 (Catmull-Rom cubic, C1) or 1 (linear);
@@ -93,7 +94,7 @@ class Surrogate:
     progress : show a progress bar while solving tiles.
     """
 
-    def __init__(self, fabric: Fabric, resolution: float = 0.001, r_nodes: int = 11, order: int = 3,
+    def __init__(self, fabric: Fabric, resolution: float = 0.002, r_nodes: int = 11, order: int = 3,
                  E_min: float = -0.06, n_elements: int | None = None, tile: int = 16,
                  cache_dir: str | Path | None | bool = None, workers: int | None = None,
                  progress: bool = True):
@@ -245,13 +246,15 @@ class Surrogate:
             V = np.moveaxis(self.intact, -1, 0)  # (nq, nE, nE)
             F = np.stack([np.stack([V[:, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
                           for oa in offsets])
-            self._coef["intact"][:, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxij->xijpq", M, M, F)
+            self._coef["intact"][:, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxij->xijpq", M, M, F,
+                                                                       optimize=True)
             mu = F[:, :, [_Q["mu1"], _Q["mu2"]]]  # (taps, taps, 2, ni, nj)
         else:
             V = np.moveaxis(self.damaged, -1, 0)  # (nq, 2, nE, nE, nr)
             F = np.stack([np.stack([V[:, :, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
                           for oa in offsets])
-            self._coef["damaged"][:, :, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxcijr->xcijrpq", M, M, F)
+            self._coef["damaged"][:, :, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxcijr->xcijrpq",
+                                                                          M, M, F, optimize=True)
             mu = F[:, :, [_Q["mu1"], _Q["mu2"]]].max(axis=(3, 6))  # worst case over both cases and r
         limit = (self.mu_crit - MU_MARGIN)[None, None, :, None, None]
         with np.errstate(invalid="ignore"):  # NaN beside unbuilt tiles counts as unsafe
@@ -282,9 +285,11 @@ class Surrogate:
         built = self.built[layer]
         if built[ta[0].min():ta[1].max() + 1, tb[0].min():tb[1].max() + 1].all():
             return  # the bounding box of the tiles touched is built
-        pairs = np.concatenate([np.stack((ta[p], tb[q]), axis=1) for p in (0, 1) for q in (0, 1)])
-        pairs = np.unique(pairs, axis=0)
-        self.ensure_tiles(layer, [tuple(p) for p in pairs if not built[p[0], p[1]]])
+        touched = np.zeros_like(built)
+        for p in (0, 1):
+            for q in (0, 1):
+                touched[ta[p], tb[q]] = True
+        self.ensure_tiles(layer, [tuple(p) for p in np.argwhere(touched & ~built)])
 
     # ------------------------------------------------------------------ interpolation
     def _lookup(self, E1, E2, r, case, qidx, derivative=False):
@@ -306,20 +311,24 @@ class Surrogate:
         groups = [("intact", None if everything else np.flatnonzero(intact))]
         if not everything:
             groups.append(("damaged", np.flatnonzero(~intact)))
-        P = self.order + 1
+        P2 = (self.order + 1) ** 2
         for layer, sel in groups:
             if sel is not None and sel.size == 0:
                 continue
             ii, jj = (i, j) if sel is None else (i[sel], j[sel])
             self._require(layer, ii, jj)
-            coef = self._coef[layer].reshape(len(QUANTITIES), -1, P, P)
+            coef = self._coef[layer].reshape(len(QUANTITIES), -1, P2)
             for lo in range(0, ii.size, _CHUNK):
-                rows = np.arange(lo, min(lo + _CHUNK, ii.size)) if sel is None else sel[lo:lo + _CHUNK]
+                rows = slice(lo, min(lo + _CHUNK, ii.size)) if sel is None else sel[lo:lo + _CHUNK]
                 cell = ii[lo:lo + _CHUNK] * self.nE + jj[lo:lo + _CHUNK]
-                T1 = interp.powers(t1[rows], self.order)
-                T2 = interp.powers(t2[rows], self.order)
-                dT1 = interp.powers(t1[rows], self.order, True) if derivative else None
-                dT2 = interp.powers(t2[rows], self.order, True) if derivative else None
+                T1, T2 = interp.powers(t1[rows], self.order), interp.powers(t2[rows], self.order)
+                # value = sum_pq C_pq t1^p t2^q = C . W with W the flattened outer product
+                W = (T1[:, :, None] * T2[:, None, :]).reshape(-1, P2)
+                if derivative:
+                    dT1 = interp.powers(t1[rows], self.order, True) / self.h
+                    dT2 = interp.powers(t2[rows], self.order, True) / self.h
+                    W1 = (dT1[:, :, None] * T2[:, None, :]).reshape(-1, P2)
+                    W2 = (T1[:, :, None] * dT2[:, None, :]).reshape(-1, P2)
                 if layer == "intact":
                     cells, wr = [cell], [None]
                 else:
@@ -330,22 +339,52 @@ class Surrogate:
                     base = ((case[rows] * self.nE * self.nE + cell) * nr) + k
                     cells, wr = [base, base + 1], [1.0 - tr, tr]
                 for c, q in enumerate(qidx):
+                    val = np.zeros(W.shape[0])
+                    g1 = np.zeros_like(val) if derivative else None
+                    g2 = np.zeros_like(val) if derivative else None
                     for cc, w in zip(cells, wr):
-                        C = coef[q][cc]  # (m, P, P)
-                        inner = np.einsum("mpq,mq->mp", C, T2)
-                        val = np.einsum("mp,mp->m", inner, T1)
-                        out[rows, c] += val if w is None else w * val
+                        C = np.take(coef[q], cc, axis=0)  # (m, P2)
+                        v = np.einsum("mk,mk->m", C, W)
+                        val += v if w is None else w * v
                         if derivative:
-                            g1 = np.einsum("mp,mp->m", inner, dT1)
-                            g2 = np.einsum("mp,mp->m", np.einsum("mpq,mq->mp", C, dT2), T1)
-                            d1[rows, c] += (g1 if w is None else w * g1) / self.h
-                            d2[rows, c] += (g2 if w is None else w * g2) / self.h
+                            v1, v2 = np.einsum("mk,mk->m", C, W1), np.einsum("mk,mk->m", C, W2)
+                            g1 += v1 if w is None else w * v1
+                            g2 += v2 if w is None else w * v2
+                    out[rows, c] = val
+                    if derivative:
+                        d1[rows, c], d2[rows, c] = g1, g2
         return (out, d1, d2) if derivative else out
 
     # ------------------------------------------------------------------ inputs
     def _inputs(self, E1, E2, a1, a2, names=("alpha1", "alpha2")):
         arrays = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (E1, E2, a1, a2)))
         E1, E2, a1, a2 = (np.ascontiguousarray(x).ravel() for x in arrays)
+        if not E1.size:
+            return E1, E2, a1, a2, arrays[0].shape
+        lows, highs = [float(x.min()) for x in (E1, E2, a1, a2)], [float(x.max()) for x in (E1, E2, a1, a2)]
+        if not (math.isfinite(sum(lows) + sum(highs)) and min(lows[:2]) > -0.5
+                and min(lows[2:]) >= 0 and max(highs[2:]) <= 1):
+            self._reject(E1, E2, a1, a2, names)
+        st = self.stats
+        st.points += E1.size
+        E = [E1, E2]
+        lo, hi = self.E_table
+        alphas = [a1, a2]
+        for i in range(2):
+            st.E_min[i], st.E_max[i] = min(st.E_min[i], lows[i]), max(st.E_max[i], highs[i])
+            if highs[i] > self.E_fail[i]:
+                beyond = E[i] > self.E_fail[i]
+                st.beyond_failure[i] += int(beyond.sum())
+                alphas[i] = np.where(beyond, 0.0, alphas[i])
+            if lows[i] < lo:
+                st.compression[i] += int((E[i] < lo).sum())
+            if lows[i] < lo or highs[i] > hi:
+                E[i] = np.clip(E[i], lo, hi)
+        return E[0], E[1], alphas[0], alphas[1], arrays[0].shape
+
+    @staticmethod
+    def _reject(E1, E2, a1, a2, names):
+        """Raise ValueError naming the first bad input point (NaN propagates through min/max)."""
         for label, x in (("E1", E1), ("E2", E2), (names[0], a1), (names[1], a2)):
             bad = ~np.isfinite(x)
             if bad.any():
@@ -357,25 +396,9 @@ class Surrogate:
             if bad.any():
                 k = int(np.flatnonzero(bad)[0])
                 raise ValueError(f"surrogate input {label} must lie in [0, 1]; point {k} has {x[k]}")
-        bad = (E1 <= -0.5) | (E2 <= -0.5)
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"strain at point {k} (E1={E1[k]}, E2={E2[k]}) is not a Green-Lagrange strain "
-                             f"of a positive stretch (needs E > -0.5)")
-        st = self.stats
-        st.points += E1.size
-        E = (E1, E2)
-        for i in range(2):
-            beyond = E[i] > self.E_fail[i]
-            st.beyond_failure[i] += int(beyond.sum())
-            st.compression[i] += int((E[i] < self.E_table[0]).sum())
-            if E1.size:
-                st.E_min[i] = min(st.E_min[i], float(E[i].min()))
-                st.E_max[i] = max(st.E_max[i], float(E[i].max()))
-        a1 = np.where(E1 > self.E_fail[0], 0.0, a1)
-        a2 = np.where(E2 > self.E_fail[1], 0.0, a2)
-        lo, hi = self.E_table
-        return np.clip(E1, lo, hi), np.clip(E2, lo, hi), a1, a2, arrays[0].shape
+        k = int(np.flatnonzero((E1 <= -0.5) | (E2 <= -0.5))[0])
+        raise ValueError(f"strain at point {k} (E1={E1[k]}, E2={E2[k]}) is not a Green-Lagrange strain "
+                         f"of a positive stretch (needs E > -0.5)")
 
     def _below_damage(self, E1, E2, a1, a2) -> np.ndarray:
         """True where every table node the point's interpolation uses (all r) has both
@@ -387,8 +410,12 @@ class Surrogate:
         safe[~intact] = self._safe["damaged"][i[~intact], j[~intact]]
         return safe
 
-    def _frozen(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False):
-        """Table values at frozen damage, forces scaled by alpha_max (damage scaling)."""
+    def lookup(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False):
+        """Raw table values (npts, len(quantities)) at frozen damage (alpha1, alpha2): forces
+        and Psi scaled by alpha_max (damage scaling), signed (not tension-only), with the
+        derivatives d/dE1 and d/dE2 when ``derivative``. The hot-path access for solvers:
+        1-D float arrays inside ``E_table`` and alphas in [0, 1] are expected and not
+        checked (:meth:`evaluate` checks its inputs). Quantities: any of ``QUANTITIES``."""
         amax = np.maximum(a1, a2)
         alive = amax > 0
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -417,7 +444,7 @@ class Surrogate:
     def evaluate(self, E1, E2, alpha1, alpha2, tension_only: bool = True):
         """P1, P2 (N/m) and mu1, mu2 with damage frozen at (alpha1, alpha2), vectorised."""
         E1, E2, a1, a2, shape = self._inputs(E1, E2, alpha1, alpha2)
-        vals = self._frozen(E1, E2, a1, a2)
+        vals = self.lookup(E1, E2, a1, a2)
         P1, P2, mu1, mu2 = (vals[:, k].reshape(shape) for k in range(4))
         if tension_only:
             P1, P2 = np.maximum(P1, 0.0), np.maximum(P2, 0.0)
@@ -437,16 +464,16 @@ class Surrogate:
         alpha = np.stack((a1h, a2h), axis=1)
         hist = alpha.copy()
         if return_mu:
-            vals = self._frozen(E1, E2, a1h, a2h)
+            vals = self.lookup(E1, E2, a1h, a2h)
             target = self._target(vals, hist)
         else:
             # Points in cells whose stretches stay well below mu_crit need no stretch at all.
             vals = np.full((E1.size, 4), np.nan)
-            vals[:, :2] = self._frozen(E1, E2, a1h, a2h, ("P1", "P2"))
+            vals[:, :2] = self.lookup(E1, E2, a1h, a2h, ("P1", "P2"))
             risk = np.flatnonzero(~self._below_damage(E1, E2, a1h, a2h))
             target = hist.copy()
             if risk.size:
-                vals[risk] = self._frozen(E1[risk], E2[risk], a1h[risk], a2h[risk])
+                vals[risk, 2:] = self.lookup(E1[risk], E2[risk], a1h[risk], a2h[risk], ("mu1", "mu2"))
                 target[risk] = self._target(vals[risk], hist[risk])
         todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
         self.last_damaging = todo.size
@@ -469,7 +496,7 @@ class Surrogate:
     def _damage_iteration(self, E1, E2, hist, target, tol):
         def evaluate(rows, alpha):
             alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
-            return self._target(self._frozen(E1[rows], E2[rows], alpha[:, 0], alpha[:, 1]), hist[rows])
+            return self._target(self.lookup(E1[rows], E2[rows], alpha[:, 0], alpha[:, 1]), hist[rows])
 
         try:
             alpha = solve_damage(hist, target, evaluate, floor=2 * ALPHA_BROKEN, tol=tol)
@@ -477,12 +504,12 @@ class Surrogate:
             raise SurrogateError(f"surrogate {err}. Refine the table (resolution, r_nodes) or "
                                  f"loosen the update's tol.") from err
         alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
-        return self._frozen(E1, E2, alpha[:, 0], alpha[:, 1]), alpha
+        return self.lookup(E1, E2, alpha[:, 0], alpha[:, 1]), alpha
 
     def tangent(self, E1, E2, alpha1, alpha2):
         """dP_i/dlambda_j (N/m) with damage frozen, as arrays (dP1/dl1, dP1/dl2, dP2/dl1, dP2/dl2)."""
         E1, E2, a1, a2, shape = self._inputs(E1, E2, alpha1, alpha2)
-        _, d1, d2 = self._frozen(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
+        _, d1, d2 = self.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
         l1, l2 = np.sqrt(1 + 2 * E1), np.sqrt(1 + 2 * E2)  # dE/dlambda = lambda
         return tuple(x.reshape(shape) for x in (d1[:, 0] * l1, d2[:, 0] * l2, d1[:, 1] * l1, d2[:, 1] * l2))
 
@@ -495,7 +522,7 @@ class Surrogate:
         """A material-point result like :meth:`UnitCell.respond` (signed P, for static scenes)."""
         P1, P2, a1, a2, mu1, mu2 = self.update(E1, E2, alpha_hist[0], alpha_hist[1], return_mu=True,
                                                tension_only=False)
-        V = self._frozen(*self._inputs(E1, E2, a1, a2)[:4], quantities=("V",))[0, 0]
+        V = self.lookup(*self._inputs(E1, E2, a1, a2)[:4], quantities=("V",))[0, 0]
         return SimpleNamespace(E1=float(E1), E2=float(E2), P1=float(P1), P2=float(P2), V=float(V),
                                alpha1=float(a1), alpha2=float(a2), mu1_max=float(mu1), mu2_max=float(mu2))
 
