@@ -425,7 +425,8 @@ class ImpactSimulation:
             self.msh, _, facet_tags = uniform_square(ms.n, ms.side, comm)
         else:
             spec = MeshSpec(side=ms.side, h_centre=ms.h_centre, h_edge=ms.h_edge,
-                            refine_radius=ms.refine_radius, centre=(0.0, 0.0), grading=ms.grading)
+                            refine_radius=ms.refine_radius, centre=(sc.projectile.x, sc.projectile.y),
+                            grading=ms.grading)
             self.msh, _, facet_tags = load_mesh(spec, comm)
         self.membrane = m = Membrane(self.msh, angle=math.radians(sc.material.angle),
                                      quadrature_degree=ms.quadrature_degree)
@@ -456,7 +457,7 @@ class ImpactSimulation:
         # -- projectile and contact
         p = sc.projectile
         self.projectile = Projectile(diameter=p.diameter, length=p.length, fillet=p.fillet, mass=p.mass,
-                                     velocity=p.velocity, friction=p.friction, axis_xy=(0.0, 0.0),
+                                     velocity=p.velocity, friction=p.friction, axis_xy=(p.x, p.y),
                                      z0=p.standoff)
         self.contact = PenaltyContact(self.projectile, damping_ratio=p.contact_damping,
                                       penalty_fraction=p.penalty_fraction)
@@ -469,7 +470,8 @@ class ImpactSimulation:
         self.eroded_cells = np.zeros(m.n_cells, dtype=bool)
         self.live_nodes = np.ones(self.n_nodes, dtype=bool)
         self._alive_indicator = None
-        dist = np.hypot(self.X[:, 0], self.X[:, 1])
+        self.axis_xy = np.array([p.x, p.y])
+        dist = np.hypot(self.X[:, 0] - p.x, self.X[:, 1] - p.y)
         local = (float(dist.min()), comm.rank) if self.n_nodes else (math.inf, comm.rank)
         _, self.centre_rank = comm.allreduce(local, op=MPI.MINLOC)
         self.centre_node = int(np.argmin(dist)) if comm.rank == self.centre_rank else -1
@@ -560,7 +562,7 @@ class ImpactSimulation:
         if not proj.may_touch(self.books.z_max, s.z, margin):
             return None, np.zeros(3), zero_info
         x = self.X + self.cd.u.reshape(-1, 3)
-        r2 = x[:, 0] ** 2 + x[:, 1] ** 2
+        r2 = (x[:, 0] - self.axis_xy[0]) ** 2 + (x[:, 1] - self.axis_xy[1]) ** 2
         near = (self.live_nodes & (r2 < proj.radius ** 2) & (x[:, 2] > s.z) & (x[:, 2] < s.z + proj.length))
         sel = np.flatnonzero(near)
         if sel.size == 0:
@@ -614,7 +616,8 @@ class ImpactSimulation:
             damaged = bool(np.any(mat.alpha1 < 1.0) or np.any(mat.alpha2 < 1.0)) if damage_on else False
             x_new = self.X[:, 2] + cd.u[2::3]
             live_z = x_new[self.live_nodes]
-            r2 = (self.X[:, 0] + cd.u[0::3]) ** 2 + (self.X[:, 1] + cd.u[1::3]) ** 2
+            r2 = ((self.X[:, 0] + cd.u[0::3] - self.axis_xy[0]) ** 2
+                  + (self.X[:, 1] + cd.u[1::3] - self.axis_xy[1]) ** 2)
             front = int(np.count_nonzero(self.live_nodes & (r2 < self.projectile.radius ** 2)
                                          & (x_new < self.state.z + self.projectile.length)))
             # every N steps, and at every step of the first N after the first touch (the
@@ -696,10 +699,12 @@ class ImpactSimulation:
                     step, t_n, f"blow-up: kinetic energy {kinetic:.4g} J, elastic work of the yarns "
                     f"{W_el:.4g} J against the impact energy KE_0 = {self.KE0:.4g} J, largest "
                     f"displacement {gmax[2]:.4g} m"))
-            if not damage_on and books.error_now > run.energy_tolerance:
+            if books.error_now > run.energy_tolerance:
                 raise ImpactError(self._trouble(
                     step, t_n, f"energy balance error {books.error_now:.3%} > run.energy_tolerance = "
-                    f"{run.energy_tolerance:g} with damage off"))
+                    f"{run.energy_tolerance:g} (damage {'on' if damage_on else 'off'}; the balance "
+                    f"KE + W_internal - W_contact = KE_0 no longer holds: the step is too large for "
+                    f"the contact or the fabric's stiffness)"))
 
             # -------------------------------------------------- time step
             step += 1

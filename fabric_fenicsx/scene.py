@@ -182,6 +182,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "velocity": Key(57.3, number(0.0, lo_open=True, unit="m/s"),
                         "initial velocity, normal to the fabric at its centre (Table 4: 34.5, 39.78, "
                         "57.3, 83.06, 123.69)"),
+        "x": Key(0.0, number(unit="m"), "impact point, global X (0 = centre of the fabric); the graded mesh is fine there"),
+        "y": Key(0.0, number(unit="m"), "impact point, global Y (0 = centre of the fabric)"),
         "friction": Key(0.5, number(0.0, unit=""), "Coulomb friction projectile/fabric (0.5; 0.1 and 2.0 in Sec. 4.4.1)"),
         "standoff": Key(0.2e-3, number(0.0, lo_open=True, unit="m"),
                         "initial gap between the impacting face and the fabric"),
@@ -208,7 +210,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                             "time without contact after which a perforation or rebound is final"),
         "max_steps": Key(0, integer(0), "stop after this many steps (0 = no limit)"),
         "energy_tolerance": Key(0.05, number(0.0, lo_open=True),
-                                "with damage off, a relative energy-balance error above this stops the run"),
+                                "a relative energy-balance error above this stops the run (damage on or off)"),
     },
     "output": {
         "xdmf_interval": Key(5.0e-5, number(0.0, unit="s"),
@@ -347,6 +349,11 @@ def _cross_check(d: dict[str, dict[str, Any]]) -> None:
         raise SceneError(f"projectile.fillet = {p['fillet']!r}: must be <= min(diameter, length) / 2 = {limit!r}")
     if p["diameter"] >= m["side"]:
         raise SceneError(f"projectile.diameter = {p['diameter']!r}: must be smaller than mesh.side = {m['side']!r}")
+    reach = m["side"] / 2 - p["diameter"] / 2
+    for axis in ("x", "y"):
+        if abs(p[axis]) >= reach:
+            raise SceneError(f"projectile.{axis} = {p[axis]!r}: the projectile's face must lie inside the "
+                             f"fabric, |{axis}| < mesh.side / 2 - diameter / 2 = {reach!r}")
 
 
 def load_scene(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Scene:

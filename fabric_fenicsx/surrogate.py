@@ -278,13 +278,16 @@ class Surrogate:
         return i, j, t1, t2
 
     def _require(self, layer: str, i, j) -> None:
+        """Build the tiles that the interpolation taps of cells (i, j) touch."""
         lo = 1 if self.order == 3 else 0
         span = 3 if self.order == 3 else 1
-        ta = ((i - lo) // self.tile, (i - lo + span) // self.tile)
-        tb = ((j - lo) // self.tile, (j - lo + span) // self.tile)
         built = self.built[layer]
-        if built[ta[0].min():ta[1].max() + 1, tb[0].min():tb[1].max() + 1].all():
+        t = self.tile
+        i0, i1, j0, j1 = int(i.min()), int(i.max()), int(j.min()), int(j.max())
+        if built[(i0 - lo) // t:(i1 - lo + span) // t + 1, (j0 - lo) // t:(j1 - lo + span) // t + 1].all():
             return  # the bounding box of the tiles touched is built
+        ta = ((i - lo) // t, (i - lo + span) // t)
+        tb = ((j - lo) // t, (j - lo + span) // t)
         touched = np.zeros_like(built)
         for p in (0, 1):
             for q in (0, 1):
@@ -501,8 +504,10 @@ class Surrogate:
         try:
             alpha = solve_damage(hist, target, evaluate, floor=2 * ALPHA_BROKEN, tol=tol)
         except DamageIterationError as err:
-            raise SurrogateError(f"surrogate {err}. Refine the table (resolution, r_nodes) or "
-                                 f"loosen the update's tol.") from err
+            k = err.rows[0]
+            raise SurrogateError(f"surrogate {err}; strains there E1 = {E1[k]!r}, E2 = {E2[k]!r}. "
+                                 f"Refine the table (resolution, r_nodes) or loosen the update's "
+                                 f"tol.") from err
         alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
         return self.lookup(E1, E2, alpha[:, 0], alpha[:, 1]), alpha
 

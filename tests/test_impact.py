@@ -44,9 +44,19 @@ def pressed(tmp_path, depth=1e-4, overrides=()):
     sim = ImpactSimulation(tiny(overrides), tmp_path / "out", verbose=False)
     sim.state = ProjectileState(z=-depth, vz=0.0, mass=sim.state.mass)
     sim.books.z_max = 0.0
-    r = np.hypot(sim.X[:, 0], sim.X[:, 1])
+    x0, y0 = sim.projectile.axis_xy
+    r = np.hypot(sim.X[:, 0] - x0, sim.X[:, 1] - y0)
     inside = r < sim.projectile.radius
     return sim, inside
+
+
+def test_an_off_centre_impact_point_moves_the_contact_and_the_deflection_probe(tmp_path):
+    sim, inside = pressed(tmp_path, overrides=["projectile.x=0.015", "projectile.y=-0.01"])
+    assert 4 <= inside.sum() and not inside[np.argmin(np.hypot(sim.X[:, 0], sim.X[:, 1]))]
+    f = sim._contact(sim.dt)[0].reshape(-1, 3)
+    assert np.all(f[inside, 2] < 0) and np.all(f[~inside] == 0)
+    probe = sim.X[sim.centre_node, :2]
+    assert np.hypot(probe[0] - 0.015, probe[1] + 0.01) <= 0.08 / 16   # the node nearest the point
 
 
 def test_contact_pushes_nodes_out_of_the_projectile(tmp_path):

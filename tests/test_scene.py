@@ -83,6 +83,7 @@ def test_parse_override():
     ("projectile.fillet=0.01", "projectile.fillet.*min\\(diameter, length\\) / 2"),
     ("run.dt_safety=1.5", r"run.dt_safety = 1.5.*\(0, 1\]"),
     ("mesh.h_centre=0.01", "mesh.h_centre.*must not exceed mesh.h_edge"),
+    ("projectile.x=0.13", r"projectile.x = 0.13.*inside the fabric.*mesh.side / 2 - diameter / 2"),
 ])
 def test_bad_values_name_the_field_and_what_is_valid(override, message):
     with pytest.raises(SceneError, match="(?s)" + message):
