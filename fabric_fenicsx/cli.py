@@ -1,4 +1,4 @@
-"""Command line: ``fabric-fenicsx static | surrogate | impact ...``.
+"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence ...``.
 
 Each subcommand's module is imported only when it runs, so the material-point scenes
 never import DOLFINx.
@@ -16,6 +16,8 @@ SUBCOMMANDS = {
     "static": ("fabric_fenicsx.static", "static material-point scenes (thesis figures 3-1 to 3-6)"),
     "surrogate": ("fabric_fenicsx.surrogate_cli", "build or report the unit-cell surrogate"),
     "impact": ("fabric_fenicsx.impact_cli", "ballistic impact of a fabric ply (thesis chapter 4)"),
+    "convergence": ("fabric_fenicsx.convergence",
+                    "error against run time of each discretisation knob (writes docs/convergence.md)"),
 }
 
 

@@ -156,6 +156,7 @@ class YarnStress:
         self.dt_prev = 0.0
         self.live = np.ones(n, dtype=bool)
         self._idx = np.arange(n)
+        self._sel = slice(None)
         self.E1, self.E2 = np.zeros(n), np.zeros(n)
         self.E1_prev, self.E2_prev = self.E1, self.E2
         self.lam = np.ones((2, n))
@@ -222,19 +223,20 @@ class YarnStress:
         live points (Eq. 2-31 from the surrogate), zero at the points of removed cells."""
         n = self.w.size
         idx = self._idx
+        sel = self._sel   # the live points: a slice while none was removed (no gathers)
         a1, a2 = np.array(alpha1_hist, dtype=float), np.array(alpha2_hist, dtype=float)
         P_el = np.zeros((2, n))
-        e1, e2 = E1[idx], E2[idx]
+        e1, e2 = E1[sel], E2[sel]
         changed = None
         if self.damage:
-            p1, p2, b1, b2 = self.sur.update(e1, e2, a1[idx], a2[idx])
-            changed = np.flatnonzero((b1 != a1[idx]) | (b2 != a2[idx]))
+            p1, p2, b1, b2 = self.sur.update(e1, e2, a1[sel], a2[sel])
+            changed = np.flatnonzero((b1 != a1[sel]) | (b2 != a2[sel]))
             if changed.size:
                 c = idx[changed]
                 released = (self.path_energy(e1[changed], e2[changed], a1[c], a2[c])
                             - self.path_energy(e1[changed], e2[changed], b1[changed], b2[changed]))
                 self.damage_dissipation += float(self.w[c] @ released)
-            a1[idx], a2[idx] = b1, b2
+            a1[sel], a2[sel] = b1, b2
         else:
             p1, p2 = self._intact(e1, e2)
         # Wrinkled yarns carry nothing (see `slack` and the module docstring): below the
@@ -244,19 +246,19 @@ class YarnStress:
         slack1, slack2 = self.slack(e1, e2)
         self.below_table += int(np.count_nonzero((e1 < self.E_lo) | (e2 < self.E_lo)))
         self.slack_tension += int(np.count_nonzero((slack1 & (p1 > 0)) | (slack2 & (p2 > 0))))
-        P_el[0, idx] = np.where(slack1, 0.0, p1)
-        P_el[1, idx] = np.where(slack2, 0.0, p2)
+        P_el[0, sel] = np.where(slack1, 0.0, p1)
+        P_el[1, sel] = np.where(slack2, 0.0, p2)
 
         lam = np.sqrt(1.0 + 2.0 * np.stack((E1, E2)))
         P_v = np.zeros((2, n))
         if self.beta > 0.0 and self.dt_prev > 0.0 and idx.size:
-            ref = self.P_el[:, idx]  # P(E^{n-1}, alpha^{n-1}), a copy (fancy indexing)
+            ref = self.P_el[:, sel].copy()  # P(E^{n-1}, alpha^{n-1})
             if changed is not None and changed.size:
                 c = idx[changed]
                 ref[:, changed] = self._frozen_P(self.E1[c], self.E2[c], a1[c], a2[c])
-            visc = (self.beta / self.dt_prev) * (P_el[:, idx] - ref)
+            visc = (self.beta / self.dt_prev) * (P_el[:, sel] - ref)
             # tension-only for the total stress: a slackening yarn is not pushed
-            P_v[:, idx] = np.maximum(P_el[:, idx] + visc, 0.0) - P_el[:, idx]
+            P_v[:, sel] = np.maximum(P_el[:, sel] + visc, 0.0) - P_el[:, sel]
         dlam = lam - self.lam
         self.viscous_dissipation += float(np.sum(self.w * (0.5 * (P_v + self.P_v) * dlam).sum(axis=0)))
         self.E1_prev, self.E2_prev = self.E1, self.E2
@@ -316,6 +318,7 @@ class YarnStress:
         self.erosion_energy += float(self.w[points] @ psi)
         self.live[points] = False
         self._idx = np.flatnonzero(self.live)
+        self._sel = self._idx
         self.P_el[:, points] = 0.0
         self.P_v[:, points] = 0.0
 
