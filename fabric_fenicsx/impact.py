@@ -95,6 +95,8 @@ from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, edge_do
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile, ProjectileState, advance
 from fabric_fenicsx.materials import Fabric, zylon_as
 from fabric_fenicsx.scene import Scene
+from fabric_fenicsx.surrogate import SurrogateError
+from fabric_fenicsx.unitcell import UnitCellError
 
 __all__ = ["ImpactError", "YarnStress", "ImpactSimulation", "run_impact", "build_fabric",
            "straight_yarn_modulus", "chatter_statistics"]
@@ -178,6 +180,7 @@ class YarnStress:
     def _intact(self, E1, E2):
         """P1, P2 of intact yarns (alpha = 1: the surrogate's intact layer only), tension-only."""
         self.beyond_table += int(np.count_nonzero((E1 > self.E_hi) | (E2 > self.E_hi)))
+        self.sur.stats.record(E1, E2)
         one = np.ones(E1.size)
         vals = self.sur.lookup(self._clip(E1), self._clip(E2), one, one, ("P1", "P2"))
         return np.maximum(vals[:, 0], 0.0), np.maximum(vals[:, 1], 0.0)
@@ -451,6 +454,7 @@ class ImpactSimulation:
         self.material = YarnStress(self.surrogate, m.quadrature_weights_detJ, sc.material.damage, beta)
 
         clamped = edge_dofs(m.V, facet_tags, [EDGE_TAGS[e] for e in sc.boundary.clamped])
+        self._clamped_blocks = np.unique(clamped // 3)   # local nodes, owned and ghost
         self.cd = CentralDifference(m, self.material, self.rho_A, clamped, damping=0.0)
         self.n_nodes = m.n_owned_nodes
         self.X = m.V.tabulate_dof_coordinates()[:self.n_nodes].copy()
@@ -472,6 +476,8 @@ class ImpactSimulation:
         self.deleted_cells = np.zeros(m.n_cells, dtype=bool)
         self.eroded_cells = np.zeros(m.n_cells, dtype=bool)
         self.live_nodes = np.ones(self.n_nodes, dtype=bool)
+        self.free_nodes = np.zeros(self.n_nodes, dtype=bool)   # in pieces cut loose (plugs)
+        self._reach = None
         self._alive_indicator = None
         self.axis_xy = np.array([p.x, p.y])
         dist = np.hypot(self.X[:, 0] - p.x, self.X[:, 1] - p.y)
@@ -532,6 +538,42 @@ class ImpactSimulation:
         self.live_nodes = b.array_r[0::3] > 0.0
         b.destroy()
 
+    def _update_free_nodes(self) -> None:
+        """Live nodes in pieces of fabric cut loose from every clamped edge (collective).
+
+        A node is attached if a chain of live cells joins it to a clamped node: propagated
+        cell by cell on each rank, exchanged across ranks through the ghost nodes, until no
+        rank finds a new attached node. A piece that is not attached (a plug punched out by
+        the projectile) is still simulated, but it neither keeps a perforation from ending
+        the run nor counts as a blow-up when it flies away with the projectile."""
+        m = self.membrane
+        if self._reach is None:
+            self._reach = fem.Function(m.V)
+            self._cell_blocks = m.V.dofmap.list.array.reshape(-1, m.V.dofmap.cell_dofs(0).size)[:m.n_cells]
+        f = self._reach
+        arr = f.x.array
+        attached = np.zeros(arr.size // 3, dtype=bool)
+        attached[self._clamped_blocks] = True
+        cells = self._cell_blocks[self.live_cells]
+        while True:
+            while True:   # on this rank
+                hit = attached[cells].any(axis=1)
+                grown = attached.copy()
+                grown[cells[hit].ravel()] = True
+                if np.array_equal(grown, attached):
+                    break
+                attached = grown
+            arr[:] = 0.0
+            arr[0::3] = attached
+            f.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            f.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            merged = arr[0::3] > 0.0
+            new = self.comm.allreduce(int(np.count_nonzero(merged & ~attached)), op=MPI.SUM)
+            attached = merged
+            if new == 0:
+                break
+        self.free_nodes = self.live_nodes & ~attached[:self.n_nodes]
+
     def _removal(self) -> tuple[np.ndarray, np.ndarray]:
         """Cells to delete (all points SDV1 = 0) and to erode (a yarn strain beyond the
         erosion strain) now, among the live cells of this rank."""
@@ -560,7 +602,7 @@ class ImpactSimulation:
         s, proj = self.state, self.projectile
         n_dofs = self.membrane.n_owned_dofs
         zero_info = dict(penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
-                         max_penetration=0.0, normal_force=0.0)
+                         n_attached=0, max_penetration=0.0, normal_force=0.0)
         margin = abs(s.vz) * dt + 1e-9
         if not proj.may_touch(self.books.z_max, s.z, margin):
             return None, np.zeros(3), zero_info
@@ -572,6 +614,9 @@ class ImpactSimulation:
             return None, np.zeros(3), zero_info
         v = self.cd.v.reshape(-1, 3)
         f_nodes, f_p, info = self.contact.forces(x[sel], v[sel], self.node_mass[sel], dt, s)
+        # touching nodes of fabric still attached to a clamped edge (a plug riding on the
+        # face does not keep the run from ending)
+        info["n_attached"] = int(np.count_nonzero(np.any(f_nodes != 0.0, axis=1) & ~self.free_nodes[sel]))
         f_ext = np.zeros(n_dofs)
         f_ext.reshape(-1, 3)[sel] = f_nodes
         return f_ext, f_p, info
@@ -609,7 +654,7 @@ class ImpactSimulation:
             mat.dt_prev = dt_prev
             try:
                 energy = cd.step(dt, f_ext)
-            except (FloatingPointError, ValueError) as err:
+            except (FloatingPointError, ValueError, SurrogateError, UnitCellError) as err:
                 raise ImpactError(self._trouble(step, t_n, f"{type(err).__name__}: {err}")) from err
 
             tb = time.perf_counter()
@@ -621,7 +666,8 @@ class ImpactSimulation:
             live_z = x_new[self.live_nodes]
             r2 = ((self.X[:, 0] + cd.u[0::3] - self.axis_xy[0]) ** 2
                   + (self.X[:, 1] + cd.u[1::3] - self.axis_xy[1]) ** 2)
-            front = int(np.count_nonzero(self.live_nodes & (r2 < self.projectile.radius ** 2)
+            attached = self.live_nodes & ~self.free_nodes
+            front = int(np.count_nonzero(attached & (r2 < self.projectile.radius ** 2)
                                          & (x_new < self.state.z + self.projectile.length)))
             # every N steps, and at every step of the first N after the first touch (the
             # strain increments the look-ahead extrapolates are not known before it)
@@ -630,20 +676,25 @@ class ImpactSimulation:
             loc_sum = np.array([f_p[2], info["penalty_energy"], -info["friction_work"], info["n_active"],
                                 mat.viscous_dissipation, mat.damage_dissipation, mat.erosion_energy,
                                 delete.size, erode.size, float(damaged), uz_c, front,
-                                mat.beyond_table, mat.below_table, mat.slack_tension])
+                                mat.beyond_table, mat.below_table, mat.slack_tension, info["n_attached"]])
             glob = np.empty_like(loc_sum)
             comm.Allreduce(loc_sum, glob, op=MPI.SUM)
             tw = time.perf_counter()
-            modulus = mat.wave_modulus(run.dt_check_interval) if check else 0.0
+            try:
+                modulus = mat.wave_modulus(run.dt_check_interval) if check else 0.0
+            except (FloatingPointError, ValueError, SurrogateError) as err:
+                raise ImpactError(self._trouble(step, t_n, f"time-step check: {type(err).__name__}: "
+                                                f"{err}")) from err
             self.clock.dt_check += time.perf_counter() - tw
             loc_max = np.array([live_z.max() if live_z.size else -math.inf, modulus,
-                                float(np.abs(cd.u.reshape(-1, 3)[self.live_nodes]).max(initial=0.0))])
+                                float(np.abs(cd.u.reshape(-1, 3)[attached]).max(initial=0.0))])
             gmax = np.empty_like(loc_max)
             comm.Allreduce(loc_max, gmax, op=MPI.MAX)
             (fz, pen, fric, n_act, visc, dmg, ero, n_del, n_ero, dmg_flag, uz_c, n_front,
-             beyond, below, slack_t) = glob
+             beyond, below, slack_t, n_attached) = glob
             if n_del or n_ero:
                 self._update_live_nodes()
+                self._update_free_nodes()
             books.deleted += int(n_del)
             books.eroded += int(n_ero)
             books.penalty_energy, books.viscous, books.damage, books.erosion = pen, visc, dmg, ero
@@ -653,9 +704,9 @@ class ImpactSimulation:
             books.central_uz = uz_c
             books.z_max = gmax[0]
             books.n_front = int(n_front)
-            if n_act > 0:
-                if books.t_touch is None:
-                    books.t_touch, books.step_touch = t_n, step
+            if n_act > 0 and books.t_touch is None:
+                books.t_touch, books.step_touch = t_n, step
+            if n_attached > 0:
                 books.t_last_contact = t_n
             if dmg_flag and books.damage_onset_time is None:
                 books.damage_onset_time = t_n
@@ -696,12 +747,17 @@ class ImpactSimulation:
             # -------------------------------------------------- trouble
             kinetic = energy.kinetic + KE_p
             W_el = energy.internal - books.viscous
-            if (kinetic > _BLOW_UP_ENERGY * self.KE0 or W_el < -_NEGATIVE_WORK * self.KE0
-                    or gmax[2] > sc.mesh.side):
-                raise ImpactError(self._trouble(
-                    step, t_n, f"blow-up: kinetic energy {kinetic:.4g} J, elastic work of the yarns "
-                    f"{W_el:.4g} J against the impact energy KE_0 = {self.KE0:.4g} J, largest "
-                    f"displacement {gmax[2]:.4g} m"))
+            tripped = [what for bad, what in (
+                (kinetic > _BLOW_UP_ENERGY * self.KE0,
+                 f"kinetic energy {kinetic:.4g} J > {_BLOW_UP_ENERGY:g} x the impact energy KE_0 = "
+                 f"{self.KE0:.4g} J"),
+                (W_el < -_NEGATIVE_WORK * self.KE0,
+                 f"the yarns gave back {-W_el:.4g} J more than they received (> {_NEGATIVE_WORK:g} KE_0)"),
+                (gmax[2] > sc.mesh.side,
+                 f"fabric attached to a clamped edge moved {gmax[2]:.4g} m, more than the fabric's side "
+                 f"{sc.mesh.side:g} m")) if bad]
+            if tripped:
+                raise ImpactError(self._trouble(step, t_n, "blow-up: " + "; ".join(tripped)))
             if books.error_now > run.energy_tolerance:
                 raise ImpactError(self._trouble(
                     step, t_n, f"energy balance error {books.error_now:.3%} > run.energy_tolerance = "
@@ -734,7 +790,7 @@ class ImpactSimulation:
                 last_progress, steps_at_progress = now, step
 
             # -------------------------------------------------- end
-            released = (books.t_touch is not None and n_act == 0
+            released = (books.t_last_contact is not None and n_attached == 0
                         and cd.time - books.t_last_contact >= run.release_time)
             if released and self.state.vz > 0:
                 end_reason = "rebound"
@@ -825,6 +881,7 @@ class ImpactSimulation:
             "n_cells": self.n_cells_global, "n_steps": n_steps, "dt": dt, "dt_initial": self.dt_initial,
             "dt_changes": [vars(c) for c in self.dt_changes], "n_ranks": comm.size,
             "deleted_cells": b.deleted, "eroded_cells": b.eroded,
+            "free_nodes": comm.allreduce(int(np.count_nonzero(self.free_nodes)), op=MPI.SUM),
             "energies": {"projectile_kinetic_0": self.KE0,
                          "projectile_kinetic": 0.5 * sc.projectile.mass * v_res ** 2,
                          "fabric_kinetic": energy.kinetic, "internal_work": energy.internal,
@@ -846,6 +903,12 @@ class ImpactSimulation:
             "damping": {"xi": self.xi, "beta": self.material.beta, "omega_max": self.omega_straight},
             "settings": sc.to_dict(),
         }
+        if b.beyond_table:
+            st = self.surrogate.stats
+            self._say(f"impact: WARNING: with damage off, {b.beyond_table} point evaluations had a yarn "
+                      f"strain above the surrogate's table (E > {self.surrogate.E_table[1]:.4g}; largest "
+                      f"E1 = {st.E_max[0]:.4g}, E2 = {st.E_max[1]:.4g} on rank 0): their stress was "
+                      "taken at the table's end, so the run left the model's range there")
         self.output.finish(summary, self.live_cells, self.point_fields(), sc.output.png)
         self._say(f"impact: {end_reason} at t = {cd.time * 1e6:.1f} us after {n_steps} steps "
                   f"({wall:.1f} s): v0 = {v0:g} m/s, residual velocity {v_res:.3f} m/s, absorbed "

@@ -58,6 +58,14 @@ class RangeStats:
     E_min: np.ndarray = field(default_factory=lambda: np.full(2, np.inf))
     E_max: np.ndarray = field(default_factory=lambda: np.full(2, -np.inf))
 
+    def record(self, E1: np.ndarray, E2: np.ndarray) -> None:
+        """Count the points and widen the strain range seen (no out-of-table counts)."""
+        self.points += E1.size
+        for i, E in enumerate((E1, E2)):
+            if E.size:
+                self.E_min[i] = min(self.E_min[i], float(E.min()))
+                self.E_max[i] = max(self.E_max[i], float(E.max()))
+
     def report(self, E_table_min: float) -> str:
         lines = [f"surrogate range: {self.points} point evaluations, strains seen "
                  f"E1 in [{self.E_min[0]:.4g}, {self.E_max[0]:.4g}], "
