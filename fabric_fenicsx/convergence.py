@@ -1,0 +1,967 @@
+"""``fabric-fenicsx convergence``: error against run time for each discretisation knob (issue 4).
+
+Knobs and the quantities a user reads:
+
+* unit-cell elements per half-yarn: P1, P2, V at fixed strain states, against a much finer cell;
+* surrogate resolution: the table of ``docs/surrogate/surrogate_report.csv`` (made by
+  ``fabric-fenicsx surrogate report``), included as it is;
+* membrane mesh size at the impact point (``mesh.h_centre``) and
+* time-step safety factor (``run.dt_safety``): residual velocity, absorbed energy and maximum
+  deflection of the Y90 impact at 57.3 m/s (damage on) and at 34.5 m/s with damage off
+  (elastic rebound), against the finest level and a Richardson extrapolation.
+
+The command writes the run folders, CSV tables and log-log plots under ``--out`` and the
+report ``--doc`` (default ``docs/convergence.md``). Each impact run has its own folder; a run
+whose ``summary.json`` (or recorded ``error.json``) exists with the same scene settings is not
+run again, so an interrupted study resumes where it stopped.
+
+The pure helpers (observed order, Richardson extrapolation, the "cheapest within 2 %" rule)
+come first and import nothing heavy; DOLFINx is imported only when an impact run starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import json
+import math
+import os
+import platform
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+# ============================================================================ pure helpers
+ORDER_RANGE = (0.5, 4.0)
+"""Observed orders outside this interval are not trusted for a Richardson extrapolation
+(a ladder still in its pre-asymptotic range, or errors at the level of noise)."""
+
+
+def observed_order(h, f, p_max: float = 20.0) -> float:
+    """Observed order of convergence p from three levels, ``f(h) = f0 + C h^p``.
+
+    ``h`` are the three level parameters (any order; positive, distinct), ``f`` the values.
+    For a constant ratio r = h_c/h_m = h_m/h_f this is ``ln((f_c - f_m)/(f_m - f_f)) / ln r``;
+    otherwise the equation ``(f_c - f_m)/(f_m - f_f) = (h_c^p - h_m^p)/(h_m^p - h_f^p)`` is
+    solved for p in (0, p_max]. Returns ``nan`` when the differences change sign
+    (oscillating, no asymptotic order), one of them is zero, or no p in range fits.
+    """
+    h = np.asarray(h, dtype=float)
+    f = np.asarray(f, dtype=float)
+    if h.shape != (3,) or f.shape != (3,):
+        raise ValueError(f"observed_order needs three levels, got h {h.shape} and f {f.shape}")
+    if not (np.all(np.isfinite(h)) and np.all(h > 0)):
+        raise ValueError(f"level parameters must be positive and finite, got {h.tolist()}")
+    order = np.argsort(h)[::-1]          # coarse, medium, fine
+    h, f = h[order], f[order]
+    if not (h[0] > h[1] > h[2]):
+        raise ValueError(f"level parameters must be distinct, got {h.tolist()}")
+    if not np.all(np.isfinite(f)):
+        return math.nan
+    d1, d2 = f[0] - f[1], f[1] - f[2]
+    if d1 == 0.0 or d2 == 0.0 or (d1 > 0) != (d2 > 0):
+        return math.nan
+    ratio = d1 / d2
+    r1, r2 = h[0] / h[1], h[1] / h[2]
+    if math.isclose(r1, r2, rel_tol=1e-9):
+        return math.log(ratio) / math.log(r1)
+
+    def g(p: float) -> float:
+        return (h[0] ** p - h[1] ** p) / (h[1] ** p - h[2] ** p) - ratio
+
+    lo, hi = 1e-6, p_max
+    if g(lo) > 0 or g(hi) < 0:          # g increases with p
+        return math.nan
+    from scipy.optimize import brentq
+    return float(brentq(g, lo, hi, xtol=1e-12))
+
+
+def richardson(h, f, p: float) -> float:
+    """Richardson extrapolation to h -> 0 from the two finest of the given levels with order p:
+    ``f_f + (f_f - f_m) / ((h_m/h_f)^p - 1)``."""
+    h = np.asarray(h, dtype=float)
+    f = np.asarray(f, dtype=float)
+    if h.size < 2 or h.shape != f.shape:
+        raise ValueError("richardson needs at least two levels with one value each")
+    if not (math.isfinite(p) and p > 0):
+        raise ValueError(f"order p must be positive and finite, got {p}")
+    i = np.argsort(h)
+    hf, hm, ff, fm = h[i[0]], h[i[1]], f[i[0]], f[i[1]]
+    if not hm > hf > 0:
+        raise ValueError(f"level parameters must be positive and distinct, got {h.tolist()}")
+    return float(ff + (ff - fm) / ((hm / hf) ** p - 1.0))
+
+
+def order_is_sensible(p: float, lo: float = ORDER_RANGE[0], hi: float = ORDER_RANGE[1]) -> bool:
+    """Whether an observed order supports a Richardson extrapolation."""
+    return bool(math.isfinite(p) and lo <= p <= hi)
+
+
+def relative_error(values, reference: float) -> np.ndarray:
+    """``|values - reference| / |reference|`` (``nan`` where a value is missing)."""
+    v = np.asarray(values, dtype=float)
+    if not (math.isfinite(reference) and reference != 0.0):
+        raise ValueError(f"reference must be finite and nonzero, got {reference}")
+    return np.abs(v - reference) / abs(reference)
+
+
+def cheapest_within(costs, values, reference: float, tol: float = 0.02) -> int | None:
+    """Index of the cheapest setting within ``tol`` (relative) of ``reference`` such that every
+    costlier setting is also within ``tol`` (so a lucky crossing of a coarse, oscillating ladder
+    is not chosen). ``None`` if no setting qualifies; missing values (nan) never qualify."""
+    c = np.asarray(costs, dtype=float)
+    v = np.asarray(values, dtype=float)
+    if c.shape != v.shape or c.ndim != 1 or c.size == 0:
+        raise ValueError("costs and values must be 1-d arrays of the same, nonzero length")
+    if not tol > 0:
+        raise ValueError(f"tol must be positive, got {tol}")
+    ok = np.zeros(c.size, dtype=bool)
+    finite = np.isfinite(v)
+    ok[finite] = relative_error(v[finite], reference) <= tol
+    by_cost = np.argsort(c, kind="stable")
+    ok_sorted = ok[by_cost]
+    # suffix "all ok" over the costlier settings
+    tail_ok = np.logical_and.accumulate(ok_sorted[::-1])[::-1]
+    hits = np.flatnonzero(tail_ok)
+    return int(by_cost[hits[0]]) if hits.size else None
+
+
+def ladder_analysis(h, values) -> dict:
+    """Errors of one quantity along a ladder (``h`` finest = smallest): observed order of the
+    three finest levels, Richardson value if that order is sensible, relative errors against
+    the finest level and against the Richardson value."""
+    h = np.asarray(h, dtype=float)
+    v = np.asarray(values, dtype=float)
+    # the finest level with a value (a failed finest run leaves the next one as reference)
+    fine = int(np.argmin(np.where(np.isfinite(v), h, np.inf)))
+    out = {"order": math.nan, "richardson": math.nan, "richardson_valid": False,
+           "finest": float(v[fine]), "err_finest": np.full(v.size, math.nan),
+           "err_richardson": np.full(v.size, math.nan)}
+    if math.isfinite(v[fine]) and v[fine] != 0.0:
+        out["err_finest"] = relative_error(v, v[fine])
+    good = np.flatnonzero(np.isfinite(v))
+    if good.size >= 3:
+        three = good[np.argsort(h[good])[:3]]
+        p = observed_order(h[three], v[three])
+        out["order"] = p
+        if order_is_sensible(p):
+            f_inf = richardson(h[three], v[three], p)
+            out["richardson"], out["richardson_valid"] = f_inf, True
+            if f_inf != 0.0:
+                out["err_richardson"] = relative_error(v, f_inf)
+    return out
+
+
+# ============================================================================ impact runs
+CASES = {
+    "damaged": {"label": "Y90, 57.3 m/s, damage on",
+                "overrides": ["projectile.velocity=57.3", "material.damage=true"]},
+    "elastic": {"label": "Y90, 34.5 m/s, damage off (elastic rebound)",
+                "overrides": ["projectile.velocity=34.5", "material.damage=false"]},
+}
+SCENE = "demos/scenes/y90.toml"
+STUDY_OVERRIDES = ["output.xdmf_interval=0", "output.png=false"]
+QUANTITIES = ("residual_velocity", "absorbed_energy", "max_deflection")
+
+
+def run_name(case: str, h_centre: float, dt_safety: float) -> str:
+    """Folder name of one impact run, e.g. ``damaged-h2mm-s0.8``."""
+    return f"{case}-h{h_centre * 1e3:.4g}mm-s{dt_safety:.4g}"
+
+
+def scene_for(case: str, h_centre: float, dt_safety: float, scene_path: str = SCENE):
+    from fabric_fenicsx.scene import load_scene
+    if case not in CASES:
+        raise ValueError(f"unknown case {case!r}; valid: {list(CASES)}")
+    return load_scene(scene_path, CASES[case]["overrides"] + STUDY_OVERRIDES
+                      + [f"mesh.h_centre={h_centre!r}", f"run.dt_safety={dt_safety!r}"])
+
+
+def _history_max_deflection(folder: Path) -> float:
+    with open(folder / "history.csv", newline="") as f:
+        rows = csv.DictReader(f)
+        values = [float(r["central_deflection"]) for r in rows]
+    return max(values) if values else math.nan
+
+
+def _load_done(folder: Path, settings: dict) -> dict | None:
+    """The recorded outcome of a finished run with the same settings, else None."""
+    for name in ("summary.json", "error.json"):
+        path = folder / name
+        timing = folder / "timing.json"
+        if path.is_file() and timing.is_file():
+            with open(path) as f:
+                data = json.load(f)
+            if data.get("settings") == settings:
+                with open(timing) as f:
+                    return {"outcome": data, "timing": json.load(f), "error": name == "error.json"}
+    return None
+
+
+@dataclass
+class RunRecord:
+    """What the study keeps of one impact run."""
+
+    case: str
+    h_centre: float
+    dt_safety: float
+    folder: str
+    error: str = ""
+    values: dict = field(default_factory=dict)
+    new: bool = False
+
+    def get(self, key: str) -> float:
+        v = self.values.get(key)
+        return math.nan if v is None else float(v)
+
+
+def run_one(case: str, h_centre: float, dt_safety: float, runs_dir: Path, rerun: bool = False,
+            log=print) -> RunRecord:
+    """One impact run into its own folder, or its recorded outcome if it was run before with
+    the same settings. Wall and CPU (process) time of the whole call are kept in timing.json."""
+    from fabric_fenicsx.impact import ImpactError, run_impact
+
+    scene = scene_for(case, h_centre, dt_safety)
+    settings = scene.to_dict()
+    folder = runs_dir / run_name(case, h_centre, dt_safety)
+    done = None if rerun else _load_done(folder, settings)
+    new = done is None
+    if new:
+        folder.mkdir(parents=True, exist_ok=True)
+        for stale in ("summary.json", "error.json", "timing.json"):
+            (folder / stale).unlink(missing_ok=True)
+        log(f"  run {folder.name}: started {datetime.datetime.now():%H:%M:%S}")
+        w0, c0 = time.perf_counter(), time.process_time()
+        error = None
+        try:
+            run_impact(scene, folder, verbose=False)
+        except (ImpactError, RuntimeError, ValueError, ArithmeticError) as err:
+            # ImpactError and the library's solver errors (e.g. SurrogateError from the damage
+            # iteration) are an outcome of the setting: recorded, and the study goes on.
+            error = f"{type(err).__name__}: {err}"
+        timing = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0}
+        if error is not None:
+            with open(folder / "error.json", "w") as f:
+                json.dump({"error": error, "settings": settings}, f, indent=1)
+        with open(folder / "timing.json", "w") as f:
+            json.dump(timing, f, indent=1)
+        done = _load_done(folder, settings)
+        status = f"FAILED ({error[:200]})" if error else "done"
+        log(f"  run {folder.name}: {status} in {timing['wall_s']:.1f} s wall, {timing['cpu_s']:.1f} s CPU")
+    else:
+        log(f"  run {folder.name}: reused (same settings), {done['timing']['cpu_s']:.1f} s CPU")
+    rec = RunRecord(case, h_centre, dt_safety, str(folder), new=new)
+    t = done["timing"]
+    rec.values.update(wall_s=t["wall_s"], cpu_s=t["cpu_s"])
+    if done["error"]:
+        rec.error = done["outcome"]["error"]
+        return rec
+    s = done["outcome"]
+    defl = s["max_deflection"]
+    rec.values.update(
+        residual_velocity=s["residual_velocity"], absorbed_energy=s["absorbed_energy"],
+        max_deflection=defl if defl is not None else _history_max_deflection(folder),
+        deflection_kind="at damage onset" if defl is not None else "history maximum",
+        n_cells=s["n_cells"], n_steps=s["n_steps"], dt=s["dt"], loop_wall_s=s["wall_time_s"],
+        energy_error=s["energy_error"], end_reason=s["end_reason"], perforated=s["perforated"],
+        end_time=s["end_time"], L_min=s["mesh"]["L_min"], xi=s["damping"]["xi"],
+        surrogate_tiles_s=s["time_total_s"]["surrogate_tiles"], build_s=s["build_time_s"],
+        finished=datetime.datetime.fromtimestamp((folder / "summary.json").stat().st_mtime,
+                                                 datetime.timezone.utc).strftime("%Y-%m-%d %H:%M:%S"))
+    return rec
+
+
+# ============================================================================ unit cell
+UNITCELL_STATES = [(E1, E2, alpha) for alpha in ((1.0, 1.0), (0.6, 1.0))
+                   for E1, E2 in ((0.01, 0.0), (0.03, 0.01), (0.04, 0.04), (0.01, -0.03))]
+"""Fixed membrane strain states (E1, E2) with frozen damage alpha: intact and damaged warp;
+the first three in contact, (0.01, -0.03) separated (fill in compression, V = 0)."""
+UNITCELL_LADDER = (6, 12, 24, 48, 96)
+UNITCELL_REFERENCE = 768
+
+
+def unitcell_study(ladder=UNITCELL_LADDER, reference: int = UNITCELL_REFERENCE,
+                   states=UNITCELL_STATES, log=print) -> dict:
+    """P1, P2, V of the unit cell at fixed states for each element count, against ``reference``.
+
+    Every solve is cold (a new cell per state, so no warm start from another state); its wall
+    and CPU time are recorded. Errors: |P_i - P_i,ref| / |P_i,ref| for P1, P2; for V relative
+    to |V_ref| when the reference cell is in contact, else the absolute V (N) (the exact V of
+    a separated cell is zero).
+    """
+    from fabric_fenicsx.materials import zylon_as
+    from fabric_fenicsx.unitcell import UnitCell
+    fabric = zylon_as()
+    ns = sorted(set(int(n) for n in ladder) | {int(reference)})
+    if min(ns) < 2:
+        raise ValueError(f"element counts must be >= 2, got {list(ladder)}")
+    rows = []
+    for n in ns:
+        for E1, E2, alpha in states:
+            cell = UnitCell(fabric, n_elements=n)
+            w0, c0 = time.perf_counter(), time.process_time()
+            r = cell.solve(E1, E2, alpha)
+            if n >= 384:
+                log(f"    n = {n}, E = ({E1:g}, {E2:g}), alpha = {alpha}: {time.process_time() - c0:.1f} s CPU")
+            rows.append({"n": n, "E1": E1, "E2": E2, "alpha1": alpha[0], "alpha2": alpha[1],
+                         "P1": r.P1, "P2": r.P2, "V": r.V, "in_contact": bool(r.in_contact),
+                         "wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0})
+        last = rows[-len(states):]
+        log(f"  unit cell n = {n}: {sum(x['cpu_s'] for x in last):.2f} s CPU for {len(states)} states")
+    ref = {(x["E1"], x["E2"], x["alpha1"], x["alpha2"]): x for x in rows if x["n"] == reference}
+    for x in rows:
+        rf = ref[(x["E1"], x["E2"], x["alpha1"], x["alpha2"])]
+        for q in ("P1", "P2"):
+            x[f"err_{q}"] = abs(x[q] - rf[q]) / abs(rf[q]) if rf[q] != 0 else abs(x[q])
+        x["err_V"] = abs(x["V"] - rf["V"]) / abs(rf["V"]) if rf["in_contact"] and rf["V"] != 0 else abs(x["V"])
+        x["err_V_kind"] = "relative" if rf["in_contact"] and rf["V"] != 0 else "absolute (N)"
+        x["ref_in_contact"] = rf["in_contact"]
+    summary = []
+    for n in ns:
+        sel = [x for x in rows if x["n"] == n]
+        summary.append({"n": n, "wall_s": float(np.mean([x["wall_s"] for x in sel])),
+                        "cpu_s": float(np.mean([x["cpu_s"] for x in sel])),
+                        **{f"max_err_{q}": float(max(x[f"err_{q}"] for x in sel)) for q in ("P1", "P2")},
+                        "max_err_V_rel": float(max([x["err_V"] for x in sel if x["err_V_kind"] == "relative"],
+                                                   default=math.nan))})
+    orders = {}
+    fine = [n for n in ns if n != reference][-3:]
+    for q in ("P1", "P2", "V_rel"):
+        key = f"max_err_{q}"
+        e = [next(s[key] for s in summary if s["n"] == n) for n in fine]
+        # error ~ C h^p with h ~ 1/n: p = ln(e_c/e_m)/ln(n_m/n_c), averaged over the pairs
+        ps = [math.log(e[i] / e[i + 1]) / math.log(fine[i + 1] / fine[i])
+              for i in range(len(e) - 1) if e[i] > 0 and e[i + 1] > 0]
+        orders[q] = float(np.mean(ps)) if ps else math.nan
+    return {"rows": rows, "summary": summary, "orders": orders, "orders_from": fine,
+            "reference": reference, "states": states}
+
+
+# ============================================================================ impact ladders
+MESH_LEVELS_MM = {"damaged": (4.0, 2.83, 2.0, 1.41, 1.0), "elastic": (4.0, 2.83, 2.0, 1.41, 1.0)}
+"""h_centre ladders (mm), ratio sqrt(2), per case. 1 mm is the finest level the study's budget
+(about 75 min CPU for both cases and both ladders on 2 shared cores) allows: measured cost
+grows about 2 to 3.5 times per level of the damaged ladder."""
+DT_SAFETIES = (0.9, 0.8, 0.6, 0.4)
+DT_MESH_MM = 2.0
+DEFAULT_SAFETY = 0.8
+
+
+def _cost_guess(case: str, h_mm: float, safety: float) -> float:
+    """Rough relative cost of a run (steps ~ 1/(h s), cells grow slower than 1/h^2 on the
+    graded mesh; damage-off runs go on to t_end): only used to order the runs."""
+    return h_mm ** -1.6 / safety * (2.0 if case == "elastic" else 1.0)
+
+
+def plan(knobs, mesh_levels_mm: dict, safeties, dt_mesh_mm) -> list[tuple[str, str, float, float]]:
+    """The impact runs of the study as (knob, case, h_centre in m, dt_safety), in the order that
+    keeps an interrupted study most useful: first the three coarsest levels of every ladder
+    (enough for an observed order), cheapest first; then the further mesh levels, level by level;
+    then the further dt levels. ``mesh_levels_mm`` maps each case to its h_centre ladder in mm."""
+    runs = []
+    if "mesh" in knobs:
+        for case in CASES:
+            for i, h in enumerate(sorted(mesh_levels_mm.get(case, ()), reverse=True)):
+                runs.append(((0 if i < 3 else 1, i, _cost_guess(case, h, DEFAULT_SAFETY)),
+                             ("mesh", case, h * 1e-3, DEFAULT_SAFETY)))
+    if "dt" in knobs:
+        for case in CASES:
+            for i, s in enumerate(sorted(safeties, reverse=True)):
+                runs.append(((0 if i < 3 else 2, i, _cost_guess(case, dt_mesh_mm, s)),
+                             ("dt", case, dt_mesh_mm * 1e-3, s)))
+    runs.sort(key=lambda r: r[0] if r[0][0] else (0, 0, r[0][2]))
+    return [r for _, r in runs]
+
+
+def run_ladders(runs, runs_dir: Path, rerun: bool = False, log=print) -> list[tuple[str, RunRecord]]:
+    """Run (or reuse) every planned impact run, strictly one after another."""
+    out, cpu = [], 0.0
+    seen: dict[tuple, RunRecord] = {}
+    for i, (knob, case, h, s) in enumerate(runs, 1):
+        log(f"[{i}/{len(runs)}] {knob}: {CASES[case]['label']}, h_centre = {h * 1e3:.4g} mm, dt_safety = {s:g}")
+        key = (case, h, s)
+        if key not in seen:
+            seen[key] = run_one(case, h, s, runs_dir, rerun=rerun, log=log)
+            cpu += seen[key].get("cpu_s")
+        out.append((knob, seen[key]))
+        log(f"  CPU time of the study's impact runs so far: {cpu / 60:.1f} min")
+    return out
+
+
+def analyse_ladder(records: list[RunRecord], param: str) -> dict:
+    """Errors and observed orders of the three quantities along one ladder.
+    ``param`` is "h_centre" or "dt_safety" (the level parameter, finest = smallest)."""
+    recs = sorted(records, key=lambda r: -getattr(r, param))
+    h = np.array([getattr(r, param) for r in recs])
+    res = {"records": recs, "param": param, "h": h}
+    for q in QUANTITIES:
+        res[q] = ladder_analysis(h, [r.get(q) for r in recs])
+    return res
+
+
+def recommend(analysis: dict, tol: float = 0.02) -> dict:
+    """Cheapest level (by CPU time) within tol of the converged residual velocity (Richardson
+    value if its order is sensible, else the finest level), every costlier level within too."""
+    a = analysis["residual_velocity"]
+    recs = analysis["records"]
+    ref, kind = (a["richardson"], "Richardson") if a["richardson_valid"] else (a["finest"], "finest level")
+    if not math.isfinite(ref):
+        return {"index": None, "reference": ref, "reference_kind": kind}
+    costs = [r.get("cpu_s") for r in recs]
+    values = [r.get("residual_velocity") for r in recs]
+    idx = cheapest_within(costs, values, ref, tol)
+    if idx is not None and not a["richardson_valid"] and values[idx] == ref:
+        # only the reference level itself qualifies: that says nothing about convergence
+        idx = None
+    return {"index": idx, "reference": ref, "reference_kind": kind,
+            "record": recs[idx] if idx is not None else None}
+
+
+# ============================================================================ output
+def _fmt(x, spec: str = ".4g") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return format(x, spec)
+
+
+def _pct(x) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{100 * x:.2f} %"
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        w.writerows(rows)
+
+
+def ladder_rows(analysis: dict) -> list[dict]:
+    rows = []
+    for i, r in enumerate(analysis["records"]):
+        row = {"case": r.case, "h_centre_m": r.h_centre, "dt_safety": r.dt_safety, "error": r.error,
+               **{k: v for k, v in r.values.items()}}
+        for q in QUANTITIES:
+            row[f"err_{q}_vs_finest"] = analysis[q]["err_finest"][i]
+            row[f"err_{q}_vs_richardson"] = analysis[q]["err_richardson"][i]
+        rows.append(row)
+    return rows
+
+
+def plot_ladders(path: Path, analyses: dict, title: str, label_fmt) -> None:
+    """Log-log relative error against CPU time, one panel per case: solid lines against the
+    finest level, dashed against the Richardson value where the observed order is sensible."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(analyses), figsize=(6 * len(analyses), 4.6), squeeze=False)
+    for ax, (case, a) in zip(axes[0], analyses.items()):
+        recs = a["records"]
+        t = np.array([r.get("cpu_s") for r in recs])
+        for q, mk, colour in zip(QUANTITIES, "osd", ("C0", "C1", "C2")):
+            e = a[q]["err_finest"]
+            keep = np.isfinite(e) & (e > 0) & np.isfinite(t)
+            if keep.any():
+                ax.loglog(t[keep], e[keep], marker=mk, color=colour, label=q.replace("_", " "))
+                if q == "residual_velocity":
+                    for ti, ei, r in zip(t[keep], e[keep], np.array(recs, dtype=object)[keep]):
+                        ax.annotate(label_fmt(r), (ti, ei), textcoords="offset points", xytext=(4, 4), fontsize=7)
+            er = a[q]["err_richardson"]
+            keep = np.isfinite(er) & (er > 0) & np.isfinite(t)
+            if a[q]["richardson_valid"] and keep.any():
+                ax.loglog(t[keep], er[keep], marker=mk, color=colour, ls="--", mfc="none",
+                          label=f"{q.replace('_', ' ')} vs Richardson")
+        ax.axhline(0.02, color="grey", ls=":", lw=1, label="2 %")
+        ax.set_xlabel("CPU time of the run (s, process time of run_impact)")
+        ax.set_ylabel("relative error (solid: vs finest level; dashed: vs Richardson)")
+        ax.set_title(f"{title}: {CASES[case]['label']}", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_unitcell(path: Path, uc: dict) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    s = [x for x in uc["summary"] if x["n"] != uc["reference"]]
+    t = np.array([x["cpu_s"] for x in s])
+    fig, ax = plt.subplots(figsize=(6, 4.6))
+    for q, mk in (("P1", "o"), ("P2", "s"), ("V_rel", "d")):
+        e = np.array([x[f"max_err_{q}"] for x in s])
+        keep = np.isfinite(e) & (e > 0)
+        ax.loglog(t[keep], e[keep], marker=mk, label=f"max rel. error {q.replace('_rel', ' (in contact)')}")
+    for ti, x in zip(t, s):
+        ax.annotate(f"n={x['n']}", (ti, x["max_err_P1"]), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax.set_xlabel("CPU time per cold unit-cell solve (s)")
+    ax.set_ylabel(f"relative error against n = {uc['reference']}")
+    ax.set_title("Unit cell: elements per half-yarn", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ============================================================================ report
+def _git_commit() -> str:
+    import subprocess
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                             timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, timeout=10).stdout.strip()
+        return out + (" (with uncommitted changes)" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return lines
+
+
+def _rel(path: Path, doc: Path) -> str:
+    return os.path.relpath(path, doc.parent)
+
+
+def unitcell_section(uc: dict, out: Path, doc: Path) -> list[str]:
+    ref = uc["reference"]
+    L = ["## 1. Unit cell: linear elements per half-yarn", "",
+         f"`UnitCell(zylon_as(), n_elements=n).solve(E1, E2, alpha)` (damage frozen at alpha) at "
+         f"{len(uc['states'])} fixed states, against n = {ref}. Each solve is cold (a new cell, no warm "
+         "start). Errors are relative to the reference value; V of a separated reference cell "
+         "(V = 0) is compared as an absolute value in N. The default is n = 24 "
+         "(`fabric_fenicsx.unitcell.N_ELEMENTS_DEFAULT`).", ""]
+    rows = []
+    for x in uc["rows"]:
+        if x["n"] == ref:
+            continue
+        rows.append([str(x["n"]), f"({x['E1']:g}, {x['E2']:g})", f"({x['alpha1']:g}, {x['alpha2']:g})",
+                     "yes" if x["ref_in_contact"] else "no", _fmt(x["P1"], ".6g"), _fmt(x["err_P1"], ".2e"),
+                     _fmt(x["P2"], ".6g"), _fmt(x["err_P2"], ".2e"), _fmt(x["V"], ".5g"),
+                     _fmt(x["err_V"], ".2e") + ("" if x["err_V_kind"] == "relative" else " N"),
+                     _fmt(x["cpu_s"] * 1e3, ".3g")])
+    refs = [[f"({x['E1']:g}, {x['E2']:g})", f"({x['alpha1']:g}, {x['alpha2']:g})",
+             "yes" if x["in_contact"] else "no", _fmt(x["P1"], ".8g"), _fmt(x["P2"], ".8g"), _fmt(x["V"], ".6g"),
+             _fmt(x["cpu_s"], ".3g")] for x in uc["rows"] if x["n"] == ref]
+    L += [f"Reference values (n = {ref}):", ""]
+    L += _md_table(["E = (E1, E2)", "alpha", "in contact", "P1 (N/m)", "P2 (N/m)", "V (N)", "CPU s"], refs)
+    L += ["", "Summary per n (mean CPU and wall time per cold solve; largest error over the states):", ""]
+    L += _md_table(["n", "CPU ms/solve", "wall ms/solve", "max rel. err P1", "max rel. err P2",
+                    "max rel. err V (in contact)"],
+                   [[str(s["n"]), _fmt(s["cpu_s"] * 1e3, ".3g"), _fmt(s["wall_s"] * 1e3, ".3g"),
+                     _fmt(s["max_err_P1"], ".2e"), _fmt(s["max_err_P2"], ".2e"), _fmt(s["max_err_V_rel"], ".2e")]
+                    for s in uc["summary"] if s["n"] != ref])
+    o = uc["orders"]
+    L += ["", f"Observed order of the largest error in 1/n (mean of log(e_n/e_2n)/log 2 over n = "
+          f"{', '.join(map(str, uc['orders_from']))}): P1 {_fmt(o['P1'], '.2f')}, P2 {_fmt(o['P2'], '.2f')}, "
+          f"V {_fmt(o['V_rel'], '.2f')}.", "", "All states:", ""]
+    L += _md_table(["n", "E", "alpha", "ref. in contact", "P1 (N/m)", "err P1", "P2 (N/m)", "err P2",
+                    "V (N)", "err V", "CPU ms"], rows)
+    L += ["", f"![unit cell error against time]({_rel(out / 'unitcell_error_vs_time.png', doc)})", ""]
+    return L
+
+
+def surrogate_section(doc: Path) -> list[str]:
+    csv_path = doc.parent / "surrogate" / "surrogate_report.csv"
+    png = doc.parent / "surrogate" / "surrogate_error_vs_time.png"
+    L = ["## 2. Surrogate resolution", "",
+         "From the surrogate study (`fabric-fenicsx surrogate report --out docs/surrogate`, its own "
+         "report `docs/surrogate/surrogate_report.md`); included here as it is, not recomputed by this command.", ""]
+    if not csv_path.is_file():
+        return L + [f"`{_rel(csv_path, doc)}` did not exist when this report was written: re-run this "
+                    "command (`--only surrogate` suffices) once the surrogate report is done.", ""]
+    with open(csv_path, newline="") as f:
+        rows = list(csv.reader(f))
+    def cell(text: str) -> str:
+        try:
+            return f"{float(text):.4g}"
+        except ValueError:
+            return text
+
+    if rows:
+        L += _md_table(rows[0], [[cell(c) for c in r] for r in rows[1:]])
+        L += ["", "Columns as in the CSV (numbers rounded to 4 digits here): `resolution` = grid spacing "
+              "of E1, E2; `r_nodes`, `order` = nodes in sqrt(alpha) and interpolation order; `solves`, "
+              "`build_s` = unit-cell solves and build time (s) of the tiles; `max_err_N_per_m`, "
+              "`rms_err_N_per_m`, `max_err_pct_of_peak` = error of P1, P2 against direct unit-cell "
+              "solves; `update_*` = error of the damage update; `*_per_s` = lookup rates; "
+              "`direct_solve_s` = median direct solve (s). Error against build time is plotted below."]
+    L += ["", f"Source: `{_rel(csv_path, doc)}`."]
+    if png.is_file():
+        L += ["", f"![surrogate error against time]({_rel(png, doc)})"]
+    return L + [""]
+
+
+def _settings_text(rec: RunRecord, levels: str, safeties: str) -> str:
+    """Every scene setting of a ladder (read back from a run's summary.json), with the ladder's
+    own parameter given as ``levels`` / ``safeties``."""
+    with open(Path(rec.folder) / ("summary.json" if not rec.error else "error.json")) as f:
+        st = json.load(f)["settings"]
+    m, p, r = st["mesh"], st["projectile"], st["run"]
+    return (f"scene `{SCENE}`; projectile velocity {p['velocity']} m/s; material damage "
+            f"{str(st['material']['damage']).lower()}; projectile diameter {p['diameter']} m, length {p['length']} m, mass "
+            f"{p['mass']} kg, fillet {p['fillet']} m, friction {p['friction']}, standoff {p['standoff']} m, "
+            f"contact_damping {p['contact_damping']}, penalty_fraction {p['penalty_fraction']}; mesh kind "
+            f"{m['kind']}, side {m['side']} m, h_centre {levels}, h_edge {m['h_edge']} m, refine_radius {m['refine_radius']} m, "
+            f"grading {m['grading']}, quadrature_degree {m['quadrature_degree']}; material angle "
+            f"{st['material']['angle']} deg, erosion_strain {st['material']['erosion_strain']}; boundary clamped "
+            f"{st['boundary']['clamped']}; run t_end {r['t_end']} s, damping {r['damping']} (fraction of "
+            f"critical at the highest mesh frequency), dt_safety {safeties}, dt_check_interval {r['dt_check_interval']}, "
+            f"release_time {r['release_time']} s; output xdmf_interval {st['output']['xdmf_interval']}, "
+            f"png {st['output']['png']}, history_interval {st['output']['history_interval']} s")
+
+
+def ladder_section(title: str, knob: str, analyses: dict, out: Path, doc: Path) -> list[str]:
+    param = "h_centre" if knob == "mesh" else "dt_safety"
+    L = [title, ""]
+    for case, a in analyses.items():
+        recs = a["records"]
+        L += [f"### {CASES[case]['label']}", ""]
+        ok = [r for r in recs if not r.error]
+        if ok:
+            if param == "h_centre":
+                lv, sf = "as in the table", f"{ok[0].dt_safety:g}"
+            else:
+                lv, sf = f"{ok[0].h_centre:g} m", "as in the table"
+            L += ["Settings: " + _settings_text(ok[0], lv, sf) + ".", ""]
+        rows = []
+        for i, r in enumerate(recs):
+            lvl = f"{r.h_centre * 1e3:.4g} mm" if param == "h_centre" else f"{r.dt_safety:g}"
+            if r.error:
+                rows.append([lvl, "-", "-", "-", _fmt(r.get("wall_s"), ".1f"), _fmt(r.get("cpu_s"), ".1f"),
+                             f"FAILED: {r.error[:400].replace('|', '/')}"] + [""] * 12)
+                continue
+            e = {q: (a[q]["err_finest"][i], a[q]["err_richardson"][i]) for q in QUANTITIES}
+            rows.append([lvl, str(r.values["n_cells"]), str(r.values["n_steps"]),
+                         _fmt(r.get("dt"), ".3e"), _fmt(r.get("wall_s"), ".1f"), _fmt(r.get("cpu_s"), ".1f"),
+                         f"{r.values['end_reason']} at {r.get('end_time') * 1e3:.3f} ms",
+                         _fmt(r.get("residual_velocity"), ".3f"), _pct(e["residual_velocity"][0]),
+                         _pct(e["residual_velocity"][1]),
+                         _fmt(r.get("absorbed_energy"), ".3f"), _pct(e["absorbed_energy"][0]),
+                         _pct(e["absorbed_energy"][1]),
+                         _fmt(r.get("max_deflection") * 1e3, ".3f"), _pct(e["max_deflection"][0]),
+                         _pct(e["max_deflection"][1]), _fmt(r.get("energy_error"), ".2e"),
+                         r.values.get("finished", "")[11:]])
+        head = ["h_centre" if param == "h_centre" else "dt_safety", "cells", "steps", "dt (s)", "wall s",
+                "CPU s", "end", "v_res (m/s)", "err v_res vs finest", "err v_res vs Richardson",
+                "E_abs (J)", "err E_abs vs finest", "err E_abs vs Richardson", "w_max (mm)",
+                "err w_max vs finest", "err w_max vs Richardson", "energy error", "finished (UTC)"]
+        L += _md_table(head, rows)
+        kind = next((r.values.get("deflection_kind") for r in ok), "")
+        L += ["", f"w_max: central deflection {kind}" + (" (summary `max_deflection`)" if kind == "at damage onset"
+                                                        else " of the `central_deflection` column of history.csv"
+                                                        if kind else "") + ".", ""]
+        orows = []
+        units = {"residual_velocity": ("v_res (m/s)", 1.0), "absorbed_energy": ("E_abs (J)", 1.0),
+                 "max_deflection": ("w_max (mm)", 1e3)}
+        for q in QUANTITIES:
+            x = a[q]
+            name, scale = units[q]
+            orows.append([name, _fmt(x["order"], ".2f"),
+                          (_fmt(x["richardson"] * scale, ".6g") if x["richardson_valid"] else
+                           f"not used (order outside [{ORDER_RANGE[0]}, {ORDER_RANGE[1]}] or undefined)"),
+                          _fmt(x["finest"] * scale, ".6g")])
+        L += ["Observed order from the three finest successful levels and Richardson extrapolation "
+              "(errors against it in the table only where the order is sensible):", ""]
+        L += _md_table(["quantity", "observed order", "Richardson value", "finest level"], orows)
+        rec = recommend(a)
+        L += [""]
+        if rec["index"] is None:
+            L += [f"**No level of this ladder other than the reference itself is within 2 % of the converged "
+                  f"residual velocity ({_fmt(rec['reference'], '.4g')} m/s, {rec['reference_kind']}) together "
+                  f"with all costlier levels: the ladder has not converged within what could be afforded.**", ""]
+        else:
+            r = rec["record"]
+            lvl = f"h_centre = {r.h_centre * 1e3:.4g} mm" if param == "h_centre" else f"dt_safety = {r.dt_safety:g}"
+            L += [f"Cheapest within 2 % of the converged residual velocity ({rec['reference']:.4g} m/s, "
+                  f"{rec['reference_kind']}), with every costlier level within 2 % too: **{lvl}** "
+                  f"({r.get('residual_velocity'):.3f} m/s, {r.get('cpu_s'):.1f} s CPU).", ""]
+    L += [f"![{knob} error against time]({_rel(out / f'{knob}_error_vs_time.png', doc)})", ""]
+    return L
+
+
+def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: dict, study_time: dict,
+                 quick: bool) -> None:
+    doc.parent.mkdir(parents=True, exist_ok=True)
+    L = ["# Convergence: error against run time (issue 4)", "",
+         f"Produced by `{command}` on {datetime.date.today().isoformat()} "
+         f"(code at commit {_git_commit()}), {os.cpu_count()} cores, "
+         f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, one MPI rank. "
+         "The machine was shared with other work while the study ran: wall times carry that load; "
+         "the plots use the CPU (process) time of each run, which does not.", ""]
+    if quick:
+        L += ["**Quick smoke version (`--quick`): tiny ladders, not a convergence study.**", ""]
+    L += ["Re-running the command reuses every impact run whose folder under "
+          f"`{_rel(out / 'runs', doc)}` holds a `summary.json` (or a recorded `error.json`) with the same "
+          "scene settings, and the stored unit-cell ladder (`unitcell.json`) if its element counts and "
+          "states are the same; `--rerun` computes everything again. Tables as CSV: "
+          f"`{_rel(out, doc)}/*.csv`.", ""]
+    sections = []
+    if uc is not None:
+        sections += unitcell_section(uc, out, doc)
+    sections += surrogate_section(doc)
+    titles = {"mesh": "## 3. Membrane mesh size at the impact point (`mesh.h_centre`, dt_safety 0.8)",
+              "dt": f"## 4. Time-step safety factor (`run.dt_safety`, h_centre = {DT_MESH_MM:g} mm)"}
+    for knob in ("mesh", "dt"):
+        if knob in ladders:
+            sections += ladder_section(titles[knob], knob, ladders[knob], out, doc)
+    L += sections
+    L += recommendation_section(ladders)
+    L += ["## Cost of this study", "",
+          f"Impact runs: {study_time['n_runs']} ({study_time['n_new']} run by this invocation), "
+          f"{study_time['cpu_s'] / 60:.1f} min CPU and {study_time['wall_s'] / 60:.1f} min wall in total "
+          "(sum over the runs as recorded in their timing.json, whenever they were run). Surrogate tiles "
+          "missing from the cache are solved during a run in worker processes: their wall time is in the "
+          "run's wall time, their CPU is not in its CPU time.", "",
+          "## Notes", "",
+          "* `run.damping` is a fraction of critical damping at the highest frequency of the mesh, so "
+          "the physical damping changes with the mesh; it is kept at the scene default 0.1 on every "
+          "level (part of what the mesh ladder measures).",
+          "* Errors are relative: |q - q_ref| / |q_ref|. The observed order uses the three finest "
+          "successful levels; it is trusted for Richardson extrapolation only inside "
+          f"[{ORDER_RANGE[0]}, {ORDER_RANGE[1]}].",
+          "* The recommendation is reported only; no scene file or default was changed."]
+    L += _data_notes(ladders)
+    doc.write_text("\n".join(L))
+
+
+def _code_change_note(recs) -> list[str]:
+    """Commits to the package (other than this module) made while the study's runs were made:
+    runs on either side of such a commit ran different code."""
+    import subprocess
+    times = sorted(r.values["finished"] for r in recs if r.values.get("finished"))
+    if not times:
+        return []
+    try:
+        log = subprocess.run(["git", "log", f"--since={times[0]}+00:00", f"--until={times[-1]}+00:00",
+                              "--date=format-local:%H:%M:%S", "--format=%h %ad %s", "--", "fabric_fenicsx",
+                              ":!fabric_fenicsx/convergence.py"],
+                             capture_output=True, text=True, timeout=10, env={**os.environ, "TZ": "UTC"}).stdout
+    except (OSError, subprocess.SubprocessError):
+        return []
+    lines = [x for x in log.splitlines() if x.strip()]
+    if not lines:
+        return []
+    return [f"* The package code changed while the study ran (runs finished between {times[0]} and {times[-1]} "
+            "UTC; the `finished` column says which code each run saw). Commits to `fabric_fenicsx/` in that "
+            "window: " + "; ".join(f"`{x[:120]}`" for x in lines) + ". Runs are reused by settings only; "
+            "`--rerun` runs every level again with one code version."]
+
+
+def _data_notes(ladders: dict) -> list[str]:
+    """Notes that follow from the runs themselves: failures, runs ended by the time limit,
+    and the extent of the mesh ladder."""
+    L = []
+    recs = {r.folder: r for k in ladders.values() for a in k.values() for r in a["records"]}.values()
+    failed = [r for r in recs if r.error]
+    if failed:
+        L.append(f"* {len(failed)} run(s) stopped with an error; the message is the outcome in the tables, "
+                 "and the orders, errors and recommendation of that ladder use its successful levels only: "
+                 + "; ".join(f"`{Path(r.folder).name}`" for r in failed) + ".")
+    timed = [r for r in recs if not r.error and r.values.get("end_reason") == "time_limit"]
+    if timed:
+        L.append(f"* {len(timed)} run(s) ended at the time limit t_end of the scene rather than on perforation "
+                 "or rebound (e.g. the projectile still touching the fabric): for them v_res is the projectile "
+                 "velocity at t_end, compared at the same t_end on every level: "
+                 + ", ".join(f"`{Path(r.folder).name}`" for r in timed) + ".")
+    L += _code_change_note(recs)
+    mesh = ladders.get("mesh", {})
+    if mesh:
+        for case, a in mesh.items():
+            ok = sorted((r for r in a["records"] if not r.error), key=lambda r: r.h_centre)
+            if len(ok) >= 2:
+                f, m = ok[0], ok[1]
+                L.append(f"* {CASES[case]['label']}: the finest mesh level, h_centre = {f.h_centre * 1e3:.4g} mm, "
+                         f"took {f.get('cpu_s') / 60:.1f} min CPU, {f.get('cpu_s') / m.get('cpu_s'):.1f} times the "
+                         f"{m.h_centre * 1e3:.4g} mm level; the ladder stops there because the whole study "
+                         "(both cases, both ladders) had to fit in about 75 min CPU on the shared 2-core machine.")
+    return L + [""]
+
+
+def recommendation_section(ladders: dict) -> list[str]:
+    L = ["## Recommendation", "",
+         "Rule: the cheapest setting (CPU time) whose residual velocity is within 2 % of the converged "
+         "value (the Richardson extrapolation if its observed order is sensible, else the finest level), "
+         "with every costlier setting of the ladder within 2 % too.", ""]
+    rows = []
+    for knob in ("mesh", "dt"):
+        for case, a in ladders.get(knob, {}).items():
+            rec = recommend(a)
+            if rec["index"] is None:
+                choice = "none within 2 % besides the reference level itself (ladder not converged)"
+            else:
+                r = rec["record"]
+                choice = (f"h_centre = {r.h_centre * 1e3:.4g} mm" if knob == "mesh"
+                          else f"dt_safety = {r.dt_safety:g}")
+            rows.append([knob, CASES[case]["label"], _fmt(rec["reference"], ".4g") + f" ({rec['reference_kind']})",
+                         choice])
+    L += _md_table(["knob", "case", "converged v_res (m/s)", "cheapest within 2 %"], rows)
+    return L + [""]
+
+
+# ============================================================================ command
+def _float_list(text: str) -> list[float]:
+    try:
+        vals = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+    if len(vals) < 1 or not all(v > 0 and math.isfinite(v) for v in vals):
+        raise argparse.ArgumentTypeError(f"expected positive numbers, got {text!r}")
+    return vals
+
+
+KNOBS = ("unitcell", "surrogate", "mesh", "dt")
+
+
+def _knobs(text: str) -> list[str]:
+    k = [x.strip() for x in text.split(",") if x.strip()]
+    bad = sorted(set(k) - set(KNOBS))
+    if bad or not k:
+        raise argparse.ArgumentTypeError(f"unknown knob(s) {bad or text!r}; valid: {', '.join(KNOBS)}")
+    return k
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", help="folder of run folders, CSVs and plots (default docs/convergence; "
+                        "out/convergence-quick with --quick)")
+    parser.add_argument("--doc", help="report file (default docs/convergence.md; OUT/convergence.md with --quick)")
+    parser.add_argument("--only", type=_knobs, default=list(KNOBS),
+                        help=f"comma-separated knobs to compute (default all: {','.join(KNOBS)}); the report "
+                             "includes every knob whose results are already stored")
+    parser.add_argument("--levels", type=_float_list, help="mesh ladder of every case, h_centre in mm (default "
+                        + "; ".join(f"{c}: " + ",".join(f"{h:g}" for h in v) for c, v in MESH_LEVELS_MM.items())
+                        + ")")
+    parser.add_argument("--case-levels", type=_case_levels, action="append", default=[], metavar="CASE=H,H,H",
+                        help=f"mesh ladder of one case (cases: {', '.join(CASES)}), e.g. damaged=4,2,1; repeatable")
+    parser.add_argument("--safeties", type=_float_list, help="dt ladder, run.dt_safety values (default "
+                        + ",".join(f"{s:g}" for s in DT_SAFETIES) + ")")
+    parser.add_argument("--dt-mesh", type=float, default=DT_MESH_MM, help="h_centre (mm) of the dt ladder (default 2)")
+    parser.add_argument("--quick", action="store_true", help="tiny smoke version (coarse ladders), not a study")
+    parser.add_argument("--rerun", action="store_true",
+                        help="run every impact run and the unit-cell ladder again, even if stored")
+
+
+def _case_levels(text: str) -> tuple[str, list[float]]:
+    case, sep, rest = text.partition("=")
+    if not sep or case.strip() not in CASES:
+        raise argparse.ArgumentTypeError(f"expected CASE=H,H,H with CASE one of {list(CASES)}, got {text!r}")
+    return case.strip(), _float_list(rest)
+
+
+def _check_ladders(levels: dict, safeties) -> None:
+    for case, lv in levels.items():
+        if len(set(lv)) < 3:
+            raise SystemExit(f"fabric-fenicsx convergence: the mesh ladder of {case} needs at least three levels")
+    if len(set(safeties)) < 3:
+        raise SystemExit("fabric-fenicsx convergence: the dt ladder needs at least three distinct levels")
+    if max(max(lv) for lv in levels.values()) > 8.0:
+        raise SystemExit("fabric-fenicsx convergence: h_centre above h_edge = 8 mm of the scene")
+    if max(safeties) > 1.0:
+        raise SystemExit("fabric-fenicsx convergence: dt_safety must lie in (0, 1]")
+
+
+def _load_unitcell(path: Path) -> dict | None:
+    if not path.is_file():
+        return None
+    with open(path) as f:
+        uc = json.load(f)
+    uc["states"] = [(E1, E2, tuple(a)) for E1, E2, a in uc["states"]]
+    return uc
+
+
+def _same_unitcell(uc: dict | None, ladder, reference: int, states) -> bool:
+    """Whether a stored unit-cell study has the same element counts, reference and states."""
+    if uc is None:
+        return False
+    ns = sorted({int(n) for n in ladder} | {int(reference)})
+    return (uc["reference"] == reference and sorted(s["n"] for s in uc["summary"]) == ns
+            and [(float(a), float(b), tuple(map(float, c))) for a, b, c in uc["states"]]
+            == [(float(a), float(b), tuple(map(float, c))) for a, b, c in states])
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.out or ("out/convergence-quick" if args.quick else "docs/convergence"))
+    doc = Path(args.doc or (out / "convergence.md" if args.quick else "docs/convergence.md"))
+    if args.levels:
+        levels = {c: list(args.levels) for c in CASES}
+    elif args.quick:
+        levels = {c: [8.0, 5.66, 4.0] for c in CASES}
+    else:
+        levels = {c: list(v) for c, v in MESH_LEVELS_MM.items()}
+    levels.update(dict(args.case_levels))
+    safeties = args.safeties or ([0.8, 0.6, 0.4] if args.quick else list(DT_SAFETIES))
+    dt_mesh = args.dt_mesh if not args.quick or args.dt_mesh != DT_MESH_MM else 8.0
+    _check_ladders(levels, safeties)
+    out.mkdir(parents=True, exist_ok=True)
+    command = "fabric-fenicsx convergence " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 and \
+        sys.argv[1] == "convergence" else "fabric-fenicsx convergence"
+
+    def log(text: str) -> None:
+        print(f"{datetime.datetime.now():%H:%M:%S} {text}", flush=True)
+
+    # impact ladders: stored plan so that --only keeps the other knob's ladder in the report
+    plan_path = out / "plan.json"
+    stored = json.loads(plan_path.read_text()) if plan_path.is_file() else {}
+    if "mesh" in args.only:
+        stored["mesh"] = levels
+    if "dt" in args.only:
+        stored["dt"] = {"safeties": safeties, "mesh_mm": dt_mesh}
+    plan_path.write_text(json.dumps(stored, indent=1))
+    knobs = [k for k in ("mesh", "dt") if k in stored]
+    runs = plan(knobs, stored.get("mesh", []), stored.get("dt", {}).get("safeties", []),
+                stored.get("dt", {}).get("mesh_mm", dt_mesh))
+    todo = [r for r in runs if r[0] in args.only]
+    # runs of a knob not asked for are only read back (they must exist)
+    records = run_ladders(todo, out / "runs", rerun=args.rerun, log=log)
+    for knob, case, h, s in runs:
+        if knob not in args.only:
+            folder = out / "runs" / run_name(case, h, s)
+            if (folder / "timing.json").is_file():
+                records.append((knob, run_one(case, h, s, out / "runs", log=log)))
+    ladders: dict[str, dict] = {}
+    for knob in knobs:
+        param = "h_centre" if knob == "mesh" else "dt_safety"
+        ladders[knob] = {}
+        for case in CASES:
+            recs = [r for k, r in records if k == knob and r.case == case]
+            if recs:
+                ladders[knob][case] = analyse_ladder(recs, param)
+        rows = [row for a in ladders[knob].values() for row in ladder_rows(a)]
+        if rows:
+            write_csv(out / f"{knob}.csv", rows)
+            label = ((lambda r: f"{r.h_centre * 1e3:.3g} mm") if knob == "mesh" else (lambda r: f"s={r.dt_safety:g}"))
+            plot_ladders(out / f"{knob}_error_vs_time.png", ladders[knob],
+                         "mesh h_centre" if knob == "mesh" else "dt_safety", label)
+    # unit cell (after the impact runs; the n = 768 reference solves take minutes): computed or reused
+    uc_path = out / "unitcell.json"
+    uc = _load_unitcell(uc_path)
+    if "unitcell" in args.only:
+        ladder = (4, 8, 16) if args.quick else UNITCELL_LADDER
+        reference = 64 if args.quick else UNITCELL_REFERENCE
+        if args.rerun or not _same_unitcell(uc, ladder, reference, UNITCELL_STATES):
+            log("unit cell ladder")
+            uc = unitcell_study(ladder, reference, log=log)
+            with open(uc_path, "w") as f:
+                json.dump(uc, f, indent=1)
+        else:
+            log(f"unit cell ladder: reused {uc_path} (same element counts and states)")
+        write_csv(out / "unitcell.csv", uc["rows"])
+        write_csv(out / "unitcell_summary.csv", uc["summary"])
+        plot_unitcell(out / "unitcell_error_vs_time.png", uc)
+
+    unique = {r.folder: r for _, r in records}
+    study_time = {"n_runs": len(unique), "n_new": sum(r.new for r in unique.values()),
+                  "cpu_s": sum(r.get("cpu_s") for r in unique.values()),
+                  "wall_s": sum(r.get("wall_s") for r in unique.values())}
+    write_report(doc, out, command, uc, ladders, study_time, args.quick)
+    log(f"report written to {doc}")
+    return 0

@@ -1,0 +1,117 @@
+"""Pure helpers of the convergence study (observed order, Richardson, selection rule) and a
+tiny unit-cell ladder. Fast: no impact run, no timing assertions."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fabric_fenicsx import convergence as cv
+
+
+def manufactured(h, f0=3.0, C=2.0, p=1.5):
+    return f0 + C * np.asarray(h, dtype=float) ** p
+
+
+@pytest.mark.parametrize("h", [(0.4, 0.2, 0.1), (0.9, 0.6, 0.2), (0.1, 0.4, 0.2)])
+def test_observed_order_recovers_known_order(h):
+    # constant ratio (closed form), non-constant ratio (root finding), and unsorted levels
+    assert cv.observed_order(h, manufactured(h)) == pytest.approx(1.5, rel=1e-8)
+
+
+def test_observed_order_decreasing_quantity():
+    h = (4.0, 2.0, 1.0)
+    f = 51.0 - 0.7 * np.asarray(h) ** 2
+    assert cv.observed_order(h, f) == pytest.approx(2.0, rel=1e-10)
+
+
+def test_observed_order_oscillating_or_flat_is_nan():
+    assert math.isnan(cv.observed_order((4, 2, 1), (1.0, 2.0, 1.5)))
+    assert math.isnan(cv.observed_order((4, 2, 1), (1.0, 1.0, 1.5)))
+
+
+def test_observed_order_bad_input():
+    with pytest.raises(ValueError):
+        cv.observed_order((1, 2), (1, 2))
+    with pytest.raises(ValueError):
+        cv.observed_order((1, 1, 2), (1, 2, 3))
+    with pytest.raises(ValueError):
+        cv.observed_order((0, 1, 2), (1, 2, 3))
+
+
+@pytest.mark.parametrize("h", [(0.4, 0.2, 0.1), (0.9, 0.6, 0.2)])
+def test_richardson_recovers_limit(h):
+    f = manufactured(h)
+    p = cv.observed_order(h, f)
+    assert cv.richardson(h, f, p) == pytest.approx(3.0, rel=1e-9)
+    # with a wrong order the extrapolation misses the limit
+    assert abs(cv.richardson(h, f, 1.0) - 3.0) > 1e-3
+
+
+def test_richardson_bad_order():
+    with pytest.raises(ValueError):
+        cv.richardson((2, 1), (1.0, 1.1), 0.0)
+
+
+def test_ladder_analysis_errors_and_validity():
+    h = np.array([0.8, 0.4, 0.2, 0.1])
+    a = cv.ladder_analysis(h, manufactured(h))
+    assert a["richardson_valid"]
+    assert a["order"] == pytest.approx(1.5, rel=1e-8)
+    assert a["richardson"] == pytest.approx(3.0, rel=1e-9)
+    expected = 2.0 * h ** 1.5 / 3.0
+    np.testing.assert_allclose(a["err_richardson"], expected, rtol=1e-7)
+    assert a["err_finest"][-1] == 0.0
+    # order 8 from an irregular sequence: outside the sensible range, no extrapolation
+    b = cv.ladder_analysis(h[:3], [1.0, 1.0 + 1e-3 * 2 ** -8, 1.0])
+    assert not b["richardson_valid"] and np.all(np.isnan(b["err_richardson"]))
+
+
+def test_ladder_analysis_skips_failed_level():
+    h = np.array([0.8, 0.4, 0.2, 0.1])
+    v = manufactured(h)
+    v[1] = np.nan
+    a = cv.ladder_analysis(h, v)
+    # uses 0.8, 0.2, 0.1 (non-constant ratio) and still finds the order
+    assert a["order"] == pytest.approx(1.5, rel=1e-8)
+
+
+def test_cheapest_within_rule():
+    costs = [1.0, 2.0, 4.0, 8.0]
+    assert cv.cheapest_within(costs, [0.9, 1.01, 0.985, 1.0], 1.0) == 1
+    # a coarse level that crosses the reference by luck is not chosen
+    assert cv.cheapest_within(costs, [1.01, 0.9, 0.99, 1.0], 1.0) == 2
+    # order of the input does not matter, only cost
+    assert cv.cheapest_within(costs[::-1], [1.0, 0.985, 1.01, 0.9], 1.0) == 2
+    assert cv.cheapest_within(costs, [0.5, 0.6, 0.7, 0.9], 1.0) is None
+    assert cv.cheapest_within(costs, [0.99, np.nan, 0.995, 1.0], 1.0) == 2
+
+
+def test_cheapest_within_bad_input():
+    with pytest.raises(ValueError):
+        cv.cheapest_within([1, 2], [1.0], 1.0)
+    with pytest.raises(ValueError):
+        cv.cheapest_within([1, 2], [1.0, 1.0], 0.0)
+
+
+def test_run_names_distinguish_settings():
+    names = {cv.run_name(c, h, s) for c in cv.CASES for h in (2e-3, 1.41e-3) for s in (0.8, 0.4)}
+    assert len(names) == 8
+    assert cv.run_name("damaged", 2e-3, 0.8) == "damaged-h2mm-s0.8"
+
+
+def test_unitcell_ladder_smoke():
+    uc = cv.unitcell_study(ladder=(4, 8), reference=32, states=[(0.03, 0.01, (1.0, 1.0))], log=lambda s: None)
+    err = {x["n"]: x["err_P1"] for x in uc["rows"]}
+    assert err[32] == 0.0
+    assert 0.0 < err[8] < err[4]
+    assert all(x["ref_in_contact"] for x in uc["rows"])
+
+
+def test_ladder_analysis_failed_finest_level_uses_next():
+    h = np.array([0.4, 0.2, 0.1])
+    v = np.array([1.2, 1.1, np.nan])
+    a = cv.ladder_analysis(h, v)
+    assert a["finest"] == 1.1
+    assert a["err_finest"][1] == 0.0 and a["err_finest"][0] == pytest.approx(0.1 / 1.1)
+    assert math.isnan(a["order"])
