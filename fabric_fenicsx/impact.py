@@ -682,7 +682,7 @@ class ImpactSimulation:
             tw = time.perf_counter()
             try:
                 modulus = mat.wave_modulus(run.dt_check_interval) if check else 0.0
-            except (FloatingPointError, ValueError, SurrogateError) as err:
+            except (FloatingPointError, ValueError, SurrogateError, UnitCellError) as err:
                 raise ImpactError(self._trouble(step, t_n, f"time-step check: {type(err).__name__}: "
                                                 f"{err}")) from err
             self.clock.dt_check += time.perf_counter() - tw

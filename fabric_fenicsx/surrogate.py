@@ -373,7 +373,7 @@ class Surrogate:
         if not E1.size:
             return E1, E2, a1, a2, arrays[0].shape
         lows, highs = [float(x.min()) for x in (E1, E2, a1, a2)], [float(x.max()) for x in (E1, E2, a1, a2)]
-        if not (math.isfinite(sum(lows) + sum(highs)) and min(lows[:2]) > -0.5
+        if not (all(math.isfinite(x) for x in lows + highs) and min(lows[:2]) > -0.5
                 and min(lows[2:]) >= 0 and max(highs[2:]) <= 1):
             self._reject(E1, E2, a1, a2, names)
         st = self.stats
@@ -407,9 +407,13 @@ class Surrogate:
             if bad.any():
                 k = int(np.flatnonzero(bad)[0])
                 raise ValueError(f"surrogate input {label} must lie in [0, 1]; point {k} has {x[k]}")
-        k = int(np.flatnonzero((E1 <= -0.5) | (E2 <= -0.5))[0])
-        raise ValueError(f"strain at point {k} (E1={E1[k]}, E2={E2[k]}) is not a Green-Lagrange strain "
-                         f"of a positive stretch (needs E > -0.5)")
+        bad = np.flatnonzero((E1 <= -0.5) | (E2 <= -0.5))
+        if bad.size:
+            k = int(bad[0])
+            raise ValueError(f"strain at point {k} (E1={E1[k]}, E2={E2[k]}) is not a Green-Lagrange "
+                             f"strain of a positive stretch (needs E > -0.5)")
+        raise ValueError(f"surrogate inputs out of range: E1 in [{E1.min()}, {E1.max()}], "
+                         f"E2 in [{E2.min()}, {E2.max()}]")
 
     def _below_damage(self, E1, E2, a1, a2) -> np.ndarray:
         """True where every table node the point's interpolation uses (all r) has both
