@@ -84,7 +84,6 @@ from pathlib import Path
 
 import numpy as np
 from dolfinx import fem
-from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -477,8 +476,7 @@ class ImpactSimulation:
         self.eroded_cells = np.zeros(m.n_cells, dtype=bool)
         self.live_nodes = np.ones(self.n_nodes, dtype=bool)
         self.free_nodes = np.zeros(self.n_nodes, dtype=bool)   # in pieces cut loose (plugs)
-        self._reach = None
-        self._alive_indicator = None
+        self._node_flags = None
         self.axis_xy = np.array([p.x, p.y])
         dist = np.hypot(self.X[:, 0] - p.x, self.X[:, 1] - p.y)
         local = (float(dist.min()), comm.rank) if self.n_nodes else (math.inf, comm.rank)
@@ -521,53 +519,45 @@ class ImpactSimulation:
         xi = 0.5 * self.material.beta * omega
         return self.scene.run.dt_safety * 2.0 / omega * (math.sqrt(1.0 + xi * xi) - xi)
 
-    def _update_live_nodes(self) -> None:
-        """Nodes touching at least one live cell on any rank (collective)."""
-        m = self.membrane
-        if self._alive_indicator is None:
-            W = fem.FunctionSpace(self.msh, ("DG", 0))
-            self._alive_indicator = fem.Function(W)
-            self._alive_cell_dofs = W.dofmap.list.array[:m.n_cells]
-            self._alive_form = fem.form(self._alive_indicator * m.v[0] * m.dx)
-        ind = self._alive_indicator
-        ind.x.array[:] = 0.0
-        ind.x.array[self._alive_cell_dofs] = self.live_cells.astype(float)
-        ind.x.scatter_forward()
-        b = fem_petsc.assemble_vector(self._alive_form)
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        self.live_nodes = b.array_r[0::3] > 0.0
-        b.destroy()
+    def _exchange_nodes(self, marked: np.ndarray) -> np.ndarray:
+        """A node marked on any rank, marked on every rank that holds it (owned or ghost;
+        collective): ``marked`` and the result are over this rank's local nodes."""
+        f = self._node_flags
+        f.x.array[:] = 0.0
+        f.x.array[0::3] = marked
+        f.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        f.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        return f.x.array[0::3] > 0.0
 
-    def _update_free_nodes(self) -> None:
-        """Live nodes in pieces of fabric cut loose from every clamped edge (collective).
+    def _update_removed_cells(self) -> None:
+        """After cells were removed (collective): ``live_nodes``, the owned nodes touching at
+        least one live cell on any rank, and ``free_nodes``, the live nodes in pieces of fabric
+        cut loose from every clamped edge.
 
         A node is attached if a chain of live cells joins it to a clamped node: propagated
         cell by cell on each rank, exchanged across ranks through the ghost nodes, until no
         rank finds a new attached node. A piece that is not attached (a plug punched out by
         the projectile) is still simulated, but it neither keeps a perforation from ending
         the run nor counts as a blow-up when it flies away with the projectile."""
-        m = self.membrane
-        if self._reach is None:
-            self._reach = fem.Function(m.V)
-            self._cell_blocks = m.V.dofmap.list.array.reshape(-1, m.V.dofmap.cell_dofs(0).size)[:m.n_cells]
-        f = self._reach
-        arr = f.x.array
-        attached = np.zeros(arr.size // 3, dtype=bool)
+        if self._node_flags is None:
+            m = self.membrane
+            self._node_flags = fem.Function(m.V)
+            self._cell_nodes = m.V.dofmap.list.array.reshape(-1, m.V.dofmap.cell_dofs(0).size)[:m.n_cells]
+        cells = self._cell_nodes[self.live_cells]
+        n_local = self._node_flags.x.array.size // 3
+        touched = np.zeros(n_local, dtype=bool)
+        touched[cells.ravel()] = True
+        self.live_nodes = self._exchange_nodes(touched)[:self.n_nodes]
+        attached = np.zeros(n_local, dtype=bool)
         attached[self._clamped_blocks] = True
-        cells = self._cell_blocks[self.live_cells]
         while True:
             while True:   # on this rank
-                hit = attached[cells].any(axis=1)
                 grown = attached.copy()
-                grown[cells[hit].ravel()] = True
+                grown[cells[attached[cells].any(axis=1)].ravel()] = True
                 if np.array_equal(grown, attached):
                     break
                 attached = grown
-            arr[:] = 0.0
-            arr[0::3] = attached
-            f.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            f.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-            merged = arr[0::3] > 0.0
+            merged = self._exchange_nodes(attached)
             new = self.comm.allreduce(int(np.count_nonzero(merged & ~attached)), op=MPI.SUM)
             attached = merged
             if new == 0:
@@ -693,8 +683,7 @@ class ImpactSimulation:
             (fz, pen, fric, n_act, visc, dmg, ero, n_del, n_ero, dmg_flag, uz_c, n_front,
              beyond, below, slack_t, n_attached) = glob
             if n_del or n_ero:
-                self._update_live_nodes()
-                self._update_free_nodes()
+                self._update_removed_cells()
             books.deleted += int(n_del)
             books.eroded += int(n_ero)
             books.penalty_energy, books.viscous, books.damage, books.erosion = pen, visc, dmg, ero

@@ -915,7 +915,7 @@ FINDINGS_TEXT: list[str] = [
     "live node inside the projectile's radius below its back face, and the blow-up test "
     "compares the largest displacement of the live nodes (`gmax[2]`) with `mesh.side`; both "
     "include the nodes of live cells that are no longer connected to the clamped fabric. "
-    "Fix: whenever cells are removed (where `_update_live_nodes` runs), label the connected "
+    "Fix: whenever cells are removed (where `_update_live_nodes` ran; now `_update_removed_cells`), label the connected "
     "pieces of live cells (cells sharing nodes; in parallel by repeating a min-label exchange "
     "through a P1/DG0 function's `scatter_forward` until no label changes, or by gathering "
     "the small cell graph on rank 0) and mark the nodes of pieces holding no clamped dof as "

@@ -130,7 +130,7 @@ def test_deleted_cell_carries_no_force(tmp_path):
     delete, erode = sim._removal()
     assert list(delete) == [c] and erode.size == 0
     sim._remove(delete, erode)
-    sim._update_live_nodes()
+    sim._update_removed_cells()
     f_dead, P1, P2 = force()
     assert np.all(P1[c * npc:(c + 1) * npc] == 0) and np.all(P2[c * npc:(c + 1) * npc] == 0)
     diff = np.abs(f_live - f_dead).reshape(-1, 3).sum(axis=1)
