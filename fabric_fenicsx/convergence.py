@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fabric_fenicsx.provenance import git_head
+
 # ============================================================================ pure helpers
 ORDER_RANGE = (0.5, 4.0)
 """Observed orders outside this interval are not trusted for a Richardson extrapolation
@@ -189,16 +191,14 @@ def _history_max_deflection(folder: Path) -> float:
 
 
 def _load_done(folder: Path, settings: dict) -> dict | None:
-    """The recorded outcome of a finished run with the same settings, else None."""
+    """The recorded outcome of a finished run with the same settings and model version, else None."""
+    from fabric_fenicsx.provenance import load_if_same
+    timing = folder / "timing.json"
     for name in ("summary.json", "error.json"):
-        path = folder / name
-        timing = folder / "timing.json"
-        if path.is_file() and timing.is_file():
-            with open(path) as f:
-                data = json.load(f)
-            if data.get("settings") == settings:
-                with open(timing) as f:
-                    return {"outcome": data, "timing": json.load(f), "error": name == "error.json"}
+        data = load_if_same(folder / name, settings)
+        if data is not None and timing.is_file():
+            with open(timing) as f:
+                return {"outcome": data, "timing": json.load(f), "error": name == "error.json"}
     return None
 
 
@@ -224,6 +224,7 @@ def run_one(case: str, h_centre: float, dt_safety: float, runs_dir: Path, rerun:
     """One impact run into its own folder, or its recorded outcome if it was run before with
     the same settings. Wall and CPU (process) time of the whole call are kept in timing.json."""
     from fabric_fenicsx.impact import ImpactError, run_impact
+    from fabric_fenicsx.provenance import code_fingerprint
 
     scene = scene_for(case, h_centre, dt_safety)
     settings = scene.to_dict()
@@ -246,17 +247,19 @@ def run_one(case: str, h_centre: float, dt_safety: float, runs_dir: Path, rerun:
         timing = {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0}
         if error is not None:
             with open(folder / "error.json", "w") as f:
-                json.dump({"error": error, "settings": settings}, f, indent=1)
+                json.dump({"error": error, "settings": settings, **code_fingerprint()}, f, indent=1)
         with open(folder / "timing.json", "w") as f:
             json.dump(timing, f, indent=1)
         done = _load_done(folder, settings)
         status = f"FAILED ({error[:200]})" if error else "done"
         log(f"  run {folder.name}: {status} in {timing['wall_s']:.1f} s wall, {timing['cpu_s']:.1f} s CPU")
     else:
-        log(f"  run {folder.name}: reused (same settings), {done['timing']['cpu_s']:.1f} s CPU")
+        log(f"  run {folder.name}: reused (same settings and model version), "
+            f"{done['timing']['cpu_s']:.1f} s CPU")
     rec = RunRecord(case, h_centre, dt_safety, str(folder), new=new)
     t = done["timing"]
-    rec.values.update(wall_s=t["wall_s"], cpu_s=t["cpu_s"])
+    rec.values.update(wall_s=t["wall_s"], cpu_s=t["cpu_s"], model_version=done["outcome"].get("model_version"),
+                      git_head=done["outcome"].get("git_head"))
     if done["error"]:
         rec.error = done["outcome"]["error"]
         return rec
@@ -510,18 +513,6 @@ def plot_unitcell(path: Path, uc: dict) -> None:
 
 
 # ============================================================================ report
-def _git_commit() -> str:
-    import subprocess
-    try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                             timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, timeout=10).stdout.strip()
-        return out + (" (with uncommitted changes)" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
 def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
@@ -694,7 +685,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
     doc.parent.mkdir(parents=True, exist_ok=True)
     L = ["# Convergence: error against run time (issue 4)", "",
          f"Produced by `{command}` on {datetime.date.today().isoformat()} "
-         f"(code at commit {_git_commit()}), {os.cpu_count()} cores, "
+         f"(code at commit {git_head() or 'unknown'}, '+' = with uncommitted edits), {os.cpu_count()} cores, "
          f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, one MPI rank. "
          "The machine was shared with other work while the study ran: wall times carry that load; "
          "the plots use the CPU (process) time of each run, which does not.", ""]
@@ -734,27 +725,18 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
     doc.write_text("\n".join(L))
 
 
-def _code_change_note(recs) -> list[str]:
-    """Commits to the package (other than this module) made while the study's runs were made:
-    runs on either side of such a commit ran different code."""
-    import subprocess
-    times = sorted(r.values["finished"] for r in recs if r.values.get("finished"))
-    if not times:
-        return []
-    try:
-        log = subprocess.run(["git", "log", f"--since={times[0]}+00:00", f"--until={times[-1]}+00:00",
-                              "--date=format-local:%H:%M:%S", "--format=%h %ad %s", "--", "fabric_fenicsx",
-                              ":!fabric_fenicsx/convergence.py"],
-                             capture_output=True, text=True, timeout=10, env={**os.environ, "TZ": "UTC"}).stdout
-    except (OSError, subprocess.SubprocessError):
-        return []
-    lines = [x for x in log.splitlines() if x.strip()]
-    if not lines:
-        return []
-    return [f"* The package code changed while the study ran (runs finished between {times[0]} and {times[-1]} "
-            "UTC; the `finished` column says which code each run saw). Commits to `fabric_fenicsx/` in that "
-            "window: " + "; ".join(f"`{x[:120]}`" for x in lines) + ". Runs are reused by settings only; "
-            "`--rerun` runs every level again with one code version."]
+def _code_note(recs) -> list[str]:
+    """Which code the runs were made with: a run is reused only with the same settings and
+    model version (`fabric_fenicsx.provenance`), so a report normally shows one version."""
+    versions: dict[str, list[str]] = {}
+    for r in recs:
+        versions.setdefault(r.values.get("model_version", "?"), []).append(Path(r.folder).name)
+    if len(versions) == 1:
+        (v,), heads = versions, sorted({r.values.get("git_head", "?") for r in recs})
+        return [f"* Every run was made with model version `{v}` (`provenance.model_version`, a hash of the "
+                f"modules that compute an impact), git commit(s) {', '.join(f'`{h}`' for h in heads)}."]
+    return ["* The runs were made with different model versions: "
+            + "; ".join(f"`{v}`: {', '.join(names)}" for v, names in versions.items()) + "."]
 
 
 def _data_notes(ladders: dict) -> list[str]:
@@ -773,7 +755,7 @@ def _data_notes(ladders: dict) -> list[str]:
                  "or rebound (e.g. the projectile still touching the fabric): for them v_res is the projectile "
                  "velocity at t_end, compared at the same t_end on every level: "
                  + ", ".join(f"`{Path(r.folder).name}`" for r in timed) + ".")
-    L += _code_change_note(recs)
+    L += _code_note(recs)
     mesh = ladders.get("mesh", {})
     if mesh:
         for case, a in mesh.items():

@@ -94,7 +94,8 @@ from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, edge_do
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile, ProjectileState, advance
 from fabric_fenicsx.materials import Fabric, zylon_as
 from fabric_fenicsx.scene import Scene
-from fabric_fenicsx.surrogate import SurrogateError
+from fabric_fenicsx.provenance import code_fingerprint
+from fabric_fenicsx.surrogate import SurrogateError, lambda_tangent
 from fabric_fenicsx.unitcell import UnitCellError
 
 __all__ = ["ImpactError", "YarnStress", "ImpactSimulation", "run_impact", "build_fabric",
@@ -112,6 +113,12 @@ central deflection (m, > 0 along the impact); dt (s); contact nodes; removed cel
 
 _BLOW_UP_ENERGY = 1.2   # kinetic energy above this multiple of KE_0 = numerical trouble
 _NEGATIVE_WORK = 0.05   # yarns that gave back more than this fraction of KE_0 beyond what they got
+WAVE_MODULUS_MARGIN = 1.05
+"""Bound of the wave modulus per point, in units of max(alpha1, alpha2) x the straight intact
+yarn's modulus: over the default table (401 x 401 strain states at alpha 1, 0.5, 0.1, 0.01) the
+largest eigenvalue of the interpolated tangent is 1.028 of it at every state the membrane can
+reach, except on the jumps of the unit cell's compressive branch (10.4 x at alpha1 = 0.01,
+E2 = -0.054), where the slope is that of the interpolant across a jump, not a wave speed."""
 
 
 class ImpactError(RuntimeError):
@@ -145,11 +152,17 @@ class YarnStress:
 
     Local (this rank) accumulators, J: ``viscous_dissipation``, ``damage_dissipation``,
     ``erosion_energy``. ``beyond_table``: point evaluations with a strain above the table
-    (damage off only; with damage on such a yarn is broken).
+    (damage off only; with damage on such a yarn is broken). ``modulus_bounded``: point
+    evaluations of :meth:`wave_modulus` whose tangent exceeded the bound and was cut to it.
+    straight_modulus: the straight intact yarn's dP/dlambda (N/m), default from the fabric.
     """
 
-    def __init__(self, surrogate, weights: np.ndarray, damage: bool, beta: float = 0.0):
+    def __init__(self, surrogate, weights: np.ndarray, damage: bool, beta: float = 0.0,
+                 straight_modulus: float | None = None):
         self.sur = surrogate
+        self.k_straight = float(straight_yarn_modulus(surrogate.fabric) if straight_modulus is None
+                                else straight_modulus)
+        self.modulus_bounded = 0
         self.w = np.asarray(weights, dtype=float)
         n = self.w.size
         self.damage = bool(damage)
@@ -274,7 +287,13 @@ class YarnStress:
         the symmetric part of dP_i/dlambda_j (damage frozen, rows of yarns that can carry
         tension only) or the geometric stiffness
         P_i / lambda_i, at the strains extrapolated ``lookahead`` steps ahead along their last
-        increase (so that the step chosen now is still stable when the next check comes)."""
+        increase (so that the step chosen now is still stable when the next check comes).
+
+        Per point the tangent is bounded by ``WAVE_MODULUS_MARGIN`` max(alpha1, alpha2) times the
+        straight intact yarn's modulus: no state of the unit cell is stiffer than its straight
+        yarns (Eq. 2-31 with the crimp pulled out); steeper slopes of the interpolant are those
+        across a jump of its compressive branch, which would otherwise collapse dt 3 x in every
+        damaged run (docs/impact.md). Cut evaluations are counted in ``modulus_bounded``."""
         idx = self._idx
         if idx.size == 0:
             return 0.0
@@ -287,21 +306,24 @@ class YarnStress:
         a1 = self.alpha1[idx] if self.damage else np.ones(idx.size)
         a2 = self.alpha2[idx] if self.damage else np.ones(idx.size)
         vals, d1, d2 = self.sur.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
-        lam1, lam2 = np.sqrt(1 + 2 * E1), np.sqrt(1 + 2 * E2)
+        d11, d12, d21, d22 = lambda_tangent(E1, E2, d1, d2)
         # Only a yarn that can carry tension has stiffness: not a broken one, not a slack one,
         # and not a compressed one whose unit-cell P_i <= 0 (tension-only). The unit cell's
         # compressive branch, never felt by the membrane, has jumps (tangents up to 4e8 N/m
         # near E1 = E2 = -0.045, 60 x the straight yarn) that would otherwise collapse dt.
         on1 = (a1 > 0) & ~slack1 & ((E1 >= 0) | (vals[:, 0] > 0))
         on2 = (a2 > 0) & ~slack2 & ((E2 >= 0) | (vals[:, 1] > 0))
-        t11 = np.where(on1, d1[:, 0] * lam1, 0.0)
-        t12 = np.where(on1, d2[:, 0] * lam2, 0.0)
-        t21 = np.where(on2, d1[:, 1] * lam1, 0.0)
-        t22 = np.where(on2, d2[:, 1] * lam2, 0.0)
+        t11, t12 = np.where(on1, d11, 0.0), np.where(on1, d12, 0.0)
+        t21, t22 = np.where(on2, d21, 0.0), np.where(on2, d22, 0.0)
         b = 0.5 * (t12 + t21)
         eig = 0.5 * (t11 + t22) + np.sqrt(0.25 * (t11 - t22) ** 2 + b * b)
-        geometric = np.maximum(np.maximum(self.P_el[0, idx], 0) / lam1,
-                               np.maximum(self.P_el[1, idx], 0) / lam2)
+        bound = WAVE_MODULUS_MARGIN * self.k_straight * np.maximum(a1, a2)
+        above = eig > bound
+        if above.any():
+            self.modulus_bounded += int(np.count_nonzero(above))
+            eig = np.where(above, bound, eig)
+        geometric = np.maximum(np.maximum(self.P_el[0, idx], 0) / np.sqrt(1 + 2 * E1),
+                               np.maximum(self.P_el[1, idx], 0) / np.sqrt(1 + 2 * E2))
         return float(max(eig.max(), geometric.max(), 0.0))
 
     def max_wave_modulus(self) -> float:
@@ -887,10 +909,13 @@ class ImpactSimulation:
                           "points_beyond_table_damage_off": b.beyond_table,
                           "points_compressed_below_table": b.below_table,
                           "points_slack_with_table_tension": b.slack_tension,
+                          "wave_modulus_bounded": comm.allreduce(self.material.modulus_bounded,
+                                                                 op=MPI.SUM),
                           "range": self.surrogate.report_range() if self.rank0 else ""},
             "mesh": {"L_min": self.L_min, "kind": sc.mesh.kind},
             "damping": {"xi": self.xi, "beta": self.material.beta, "omega_max": self.omega_straight},
             "settings": sc.to_dict(),
+            **code_fingerprint(),
         }
         if b.beyond_table:
             st = self.surrogate.stats

@@ -48,10 +48,12 @@ from pathlib import Path
 
 import numpy as np
 
+from fabric_fenicsx.provenance import code_fingerprint, load_if_same
+
 __all__ = ["Case", "CASES", "BASE_SCENE", "BASE_OVERRIDES", "ENERGY_LIMIT", "scaled_stiffness",
            "with_crimp", "make_fabric", "case_settings", "run_case", "assess", "run_study",
            "write_csv", "plot_histories", "write_report", "main", "run_simulation", "free_fragments",
-           "parse_stop_message", "code_fingerprint"]
+           "parse_stop_message"]
 
 # ============================================================================ the cases
 BASE_SCENE = "demos/scenes/y90.toml"
@@ -211,26 +213,6 @@ def case_settings(case: Case, base_scene: str = BASE_SCENE,
             "fabric": fab}
 
 
-def code_fingerprint() -> dict:
-    """Git HEAD and a hash of the package's source files (this module excluded) as they are on
-    disk now: the code a case ran with, working-tree edits included."""
-    import hashlib
-    import subprocess
-
-    root = Path(__file__).resolve().parent
-    h = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        if path.name != "stability.py":
-            h.update(path.relative_to(root).as_posix().encode())
-            h.update(path.read_bytes())
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True,
-                              text=True, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        head = ""
-    return {"git_head": head, "source_sha256": h.hexdigest()[:12]}
-
-
 def _cpu_seconds() -> float:
     """CPU time of this process and its finished children (surrogate tile workers), s."""
     own = resource.getrusage(resource.RUSAGE_SELF)
@@ -283,7 +265,7 @@ def run_case(case: Case, folder: Path, base_scene: str = BASE_SCENE,
     record = {"name": case.name, "title": case.title, "settings": settings,
               "date": datetime.datetime.now().isoformat(timespec="seconds"),
               "status": None, "error_type": None, "message": None, "summary": None,
-              "code": code_fingerprint()}
+              **code_fingerprint()}
     wall0, cpu0 = time.perf_counter(), _cpu_seconds()
     scene = None
     keep: dict = {}
@@ -458,14 +440,7 @@ def assess(record: dict) -> dict:
 
 
 def _load_done(folder: Path, settings: dict) -> dict | None:
-    path = folder / "result.json"
-    if not path.is_file():
-        return None
-    try:
-        rec = json.loads(path.read_text())
-    except json.JSONDecodeError:
-        return None
-    return rec if rec.get("settings") == settings else None
+    return load_if_same(folder / "result.json", settings)
 
 
 # ============================================================================ the study
@@ -689,14 +664,14 @@ def _code_text(records: list[dict]) -> str:
     """Which source the cases ran with (the package changes while studies run)."""
     codes = {}
     for r in records:
-        c = r.get("code") or {}
-        codes.setdefault((c.get("git_head", "?"), c.get("source_sha256", "?")), []).append(r["name"])
+        codes.setdefault((r.get("git_head", "?"), r.get("model_version", "?")), []).append(r["name"])
     if len(codes) == 1:
-        (head, sha), = codes
-        return (f"All cases ran with the same source: git HEAD `{head}` plus the working tree, "
-                f"package source hash `{sha}` (`stability.code_fingerprint`).")
-    parts = [f"`{head}`/`{sha}`: {', '.join(names)}" for (head, sha), names in codes.items()]
-    return "The cases ran with different sources (git HEAD / source hash): " + "; ".join(parts) + "."
+        (head, version), = codes
+        return (f"All cases ran with the same code: git commit `{head}` ('+' = with uncommitted edits), "
+                f"model version `{version}` (`provenance.model_version`, a hash of the modules that "
+                "compute an impact).")
+    parts = [f"`{head}`/`{v}`: {', '.join(names)}" for (head, v), names in codes.items()]
+    return "The cases ran with different code (git commit / model version): " + "; ".join(parts) + "."
 
 
 VERDICT_NOTES = {"v1000": "finding 1, fixed", "friction-0": "an earlier run: finding 2, fixed",

@@ -527,8 +527,7 @@ class Surrogate:
         """dP_i/dlambda_j (N/m) with damage frozen, as arrays (dP1/dl1, dP1/dl2, dP2/dl1, dP2/dl2)."""
         E1, E2, a1, a2, shape = self._inputs(E1, E2, alpha1, alpha2)
         _, d1, d2 = self.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
-        l1, l2 = np.sqrt(1 + 2 * E1), np.sqrt(1 + 2 * E2)  # dE/dlambda = lambda
-        return tuple(x.reshape(shape) for x in (d1[:, 0] * l1, d2[:, 0] * l2, d1[:, 1] * l1, d2[:, 1] * l2))
+        return tuple(x.reshape(shape) for x in lambda_tangent(E1, E2, d1, d2))
 
     def max_wave_modulus(self, E1, E2, alpha1, alpha2) -> float:
         """Largest dP_i/dlambda_i over the points (N/m), for the explicit stable time step."""
@@ -551,6 +550,13 @@ class Surrogate:
         return (f"surrogate {self.key}: h = {self.h:g}, r nodes = {self.r_nodes}, order = {self.order}, "
                 f"E in [{self.E_table[0]:g}, {self.E_table[1]:g}] ({self.nE} nodes per axis with ghosts), "
                 f"tiles built {built} of {self.n_tiles ** 2} per layer, cache {self.cache_dir}")
+
+
+def lambda_tangent(E1, E2, dE1, dE2):
+    """dP_i/dlambda_j = dP_i/dE_j lambda_j (E_j = (lambda_j^2 - 1)/2) from the columns (P1, P2)
+    of :meth:`Surrogate.lookup`'s derivatives ``dE1``, ``dE2``: (dP1/dl1, dP1/dl2, dP2/dl1, dP2/dl2)."""
+    l1, l2 = np.sqrt(1 + 2 * E1), np.sqrt(1 + 2 * E2)
+    return dE1[:, 0] * l1, dE2[:, 0] * l2, dE1[:, 1] * l1, dE2[:, 1] * l2
 
 
 def material_point(fabric: Fabric, **settings) -> Surrogate:

@@ -4,8 +4,8 @@ simulation and the experiment (Boeing report), as quoted in the thesis.
     .venv/bin/python -m fabric_fenicsx.table4 --out docs/impact [--runs out/table4] [--set section.key=value ...]
 
 Each velocity runs into its own folder under ``--runs`` (``v<V0>/summary.json``, ``history.csv``); a velocity
-whose summary already exists with the same settings is not run again, so an interrupted study
-resumes. Writes ``table4.csv``, ``table4.md`` (every setting behind the numbers) and
+whose summary already exists with the same settings and model version (``provenance``) is not run
+again, so an interrupted study resumes. Writes ``table4.csv``, ``table4.md`` (every setting behind the numbers) and
 ``table4.png`` into ``--out``. Serial; nothing is tuned: the scene's values are used as they are.
 """
 
@@ -38,15 +38,15 @@ COLUMNS = ("v0", "residual_velocity", "perforated", "absorbed_energy", "max_defl
 def run_study(scene_path: str, runs: Path, overrides: list[str], verbose: bool = True) -> list[dict]:
     """Run (or reuse) the five velocities; return one row per velocity."""
     from fabric_fenicsx.impact import ImpactError, run_impact
+    from fabric_fenicsx.provenance import load_if_same
     from fabric_fenicsx.scene import load_scene
 
     rows = []
     for k, v0 in enumerate(VELOCITIES):
         scene = load_scene(scene_path, list(overrides) + [f"projectile.velocity={v0}"])
         folder = runs / f"v{v0:g}"
-        path = folder / "summary.json"
-        summary = json.loads(path.read_text()) if path.is_file() else None
-        if summary is None or summary.get("settings") != json.loads(json.dumps(scene.to_dict())):
+        summary = load_if_same(folder / "summary.json", scene.to_dict())
+        if summary is None:
             if verbose:
                 print(f"table4: running V0 = {v0:g} m/s into {folder}", flush=True)
             t0 = time.perf_counter()

@@ -174,6 +174,43 @@ def test_wrinkled_yarns_carry_nothing_and_do_not_set_the_time_step(tmp_path):
     P1, P2, _, _ = mat.update(E1, E2, one, one)
     assert np.all(P1 > 0) and np.all(P2 > 0)
     assert 0 < mat.wave_modulus() <= 1.05 * straight_yarn_modulus(sim.fabric)
+    assert mat.modulus_bounded == 0
+
+
+def test_the_wave_modulus_is_bounded_by_the_straight_yarn_across_a_jump_of_the_table(tmp_path):
+    """A nearly broken warp with its fill compressed and still taut sits on a jump of the unit
+    cell's compressive branch (docs/impact.md): the interpolant's slope there, ~10 x the straight
+    yarn's modulus, must not set the time step."""
+    sim = ImpactSimulation(tiny(["material.damage=true"]), tmp_path / "out", verbose=False)
+    mat, k = sim.material, straight_yarn_modulus(sim.fabric)
+    n = mat.w.size
+    E1, E2, a1, a2 = np.full(n, 1e-4), np.full(n, -0.0538), np.full(n, 0.01), np.ones(n)
+    P1, P2, b1, b2 = mat.update(E1, E2, a1, a2)
+    assert np.all(b1 == 0.01) and np.all(P2 > 0)              # the fill is taut: it counts
+    t22 = sim.surrogate.tangent(E1[:1], E2[:1], b1[:1], b2[:1])[3][0]
+    assert t22 > 5 * k                                          # the premise: a steep interpolant
+    assert mat.wave_modulus() == pytest.approx(1.05 * k, rel=1e-12)
+    assert mat.modulus_bounded == n
+
+
+def test_no_state_in_biaxial_tension_is_stiffer_than_the_straight_yarns(tmp_path):
+    """The bound of `YarnStress.wave_modulus` is the physics, not a clip of real states: in
+    biaxial tension the largest eigenvalue of the tangent stays below 1.05 alpha_max x the
+    straight-yarn modulus, and reaches it (crimp pulled out), at every damage level."""
+    from fabric_fenicsx.impact import WAVE_MODULUS_MARGIN
+    from fabric_fenicsx.materials import zylon_as
+    from fabric_fenicsx.surrogate import Surrogate
+    fabric = zylon_as("max")
+    sur = Surrogate(fabric, cache_dir=tmp_path, resolution=0.004, r_nodes=6, tile=8, progress=False)
+    k = straight_yarn_modulus(fabric)
+    E = np.linspace(0.0, sur.E_table[1], 60)
+    E1, E2 = (x.ravel() for x in np.meshgrid(E, E, indexing="ij"))
+    for a1, a2 in ((1.0, 1.0), (0.3, 1.0), (1.0, 0.3), (0.1, 0.1), (0.01, 1.0)):
+        t11, t12, t21, t22 = sur.tangent(E1, E2, np.full(E1.size, a1), np.full(E1.size, a2))
+        b = 0.5 * (t12 + t21)
+        eig = 0.5 * (t11 + t22) + np.sqrt(0.25 * (t11 - t22) ** 2 + b * b)
+        ratio = eig.max() / (k * max(a1, a2))
+        assert 0.85 < ratio <= WAVE_MODULUS_MARGIN, (a1, a2, ratio)
 
 
 def test_path_energy_is_the_unit_cell_energy_in_tension(tmp_path):

@@ -1,0 +1,65 @@
+"""Which code a run was made with, and reuse of a stored run only when it would come out the same.
+
+The studies (``table4``, ``convergence``, ``stability``) store each impact run in its own
+folder and reuse it when asked again. A stored run stands for a new one only if both its scene
+settings and the code that computes an impact (:data:`MODEL_MODULES`) are unchanged: editing
+a study's report writer keeps its runs, editing the physics re-runs them.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import subprocess
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent
+
+MODEL_MODULES = ("materials.py", "fibril.py", "unitcell.py", "damage_solver.py", "interp.py",
+                 "tiles.py", "surrogate.py", "scene.py", "impact.py", "fem/*.py")
+"""The package's modules (globs relative to it) whose source determines an impact run's numbers."""
+
+
+@functools.lru_cache(maxsize=None)
+def model_version() -> str:
+    """Short SHA-256 of the :data:`MODEL_MODULES` sources as they are on disk now (working-tree
+    edits included)."""
+    h = hashlib.sha256()
+    for path in sorted({p for pattern in MODEL_MODULES for p in PACKAGE.glob(pattern)}):
+        h.update(path.relative_to(PACKAGE).as_posix().encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:12]
+
+
+def git_head() -> str:
+    """Short git commit of the package's checkout ('' outside git); '+' when it has edits."""
+    try:
+        run = functools.partial(subprocess.run, cwd=PACKAGE, capture_output=True, text=True, timeout=10)
+        head = run(["git", "rev-parse", "--short", "HEAD"]).stdout.strip()
+        dirty = run(["git", "status", "--porcelain", "--", "."]).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return head + ("+" if head and dirty else "")
+
+
+def code_fingerprint() -> dict:
+    """``{"git_head", "model_version"}`` of the code running now."""
+    return {"git_head": git_head(), "model_version": model_version()}
+
+
+def load_if_same(path: str | Path, settings: dict) -> dict | None:
+    """The JSON record at ``path`` if it holds these ``settings`` (as JSON compares them) and
+    was made by this :func:`model_version`; else None (absent, unreadable, or stale)."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    try:
+        record = json.loads(path.read_text())
+    except (json.JSONDecodeError, OSError):
+        return None
+    if record.get("settings") != json.loads(json.dumps(settings)):
+        return None
+    if record.get("model_version") != model_version():
+        return None
+    return record
