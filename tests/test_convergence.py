@@ -115,3 +115,23 @@ def test_ladder_analysis_failed_finest_level_uses_next():
     assert a["finest"] == 1.1
     assert a["err_finest"][1] == 0.0 and a["err_finest"][0] == pytest.approx(0.1 / 1.1)
     assert math.isnan(a["order"])
+
+
+def test_scatter_runs_change_only_the_impact_velocity_and_have_their_own_folders():
+    base = cv.scene_for("damaged", 2e-3, 0.8).to_dict()
+    moved = cv.scene_for("damaged", 2e-3, 0.8, perturbation=1e-12).to_dict()
+    assert moved["projectile"].pop("velocity") == pytest.approx(57.3 * (1 + 1e-12), rel=1e-15)
+    assert base["projectile"].pop("velocity") == 57.3
+    assert moved == base
+    names = {cv.run_name("damaged", 2e-3, 0.8, p) for p in (0.0, *cv.SCATTER_PERTURBATIONS)}
+    assert len(names) == 1 + len(cv.SCATTER_PERTURBATIONS)
+
+
+def test_scatter_spread():
+    recs = [cv.RunRecord("damaged", 2e-3, 0.8, f"r{k}", values={"residual_velocity": v})
+            for k, v in enumerate((48.0, 50.0, 49.0))]
+    recs.append(cv.RunRecord("damaged", 2e-3, 0.8, "bad", error="ImpactError: stopped"))
+    s = cv.scatter_spread(recs)
+    assert s["n"] == 3 and s["mean"] == pytest.approx(49.0)
+    assert s["std_rel"] == pytest.approx(1.0 / 49.0) and s["max_rel"] == pytest.approx(1.0 / 49.0)
+    assert cv.scatter_spread(recs[:1]) == {}
