@@ -168,6 +168,10 @@ CASES = {
 SCATTER_PERTURBATIONS = tuple(k * 1e-12 for k in range(1, 9))
 """Relative changes of the damaged case's impact velocity for the run-to-run scatter: far below
 any physical uncertainty, they show how much the tearing phase amplifies round-off."""
+SCATTER_LEVELS_MM = (4.0, 2.83, 2.0)
+"""Mesh levels (h_centre, mm; dt_safety 0.8) at which the damaged case runs as an ensemble (the
+unperturbed run of the mesh ladder and one run per perturbation): the ensemble means are what the
+damaged mesh ladder can compare, to within their standard errors."""
 SCENE = "demos/scenes/y90.toml"
 STUDY_OVERRIDES = ["output.xdmf_interval=0", "output.png=false"]
 QUANTITIES = ("residual_velocity", "absorbed_energy", "max_deflection")
@@ -280,6 +284,7 @@ def run_one(case: str, h_centre: float, dt_safety: float, runs_dir: Path, rerun:
     defl = s["max_deflection"]
     rec.values.update(
         residual_velocity=s["residual_velocity"], absorbed_energy=s["absorbed_energy"],
+        eroded_cells=s.get("eroded_cells"),
         max_deflection=defl if defl is not None else _history_max_deflection(folder),
         deflection_kind="at damage onset" if defl is not None else "history maximum",
         n_cells=s["n_cells"], n_steps=s["n_steps"], dt=s["dt"], loop_wall_s=s["wall_time_s"],
@@ -694,7 +699,7 @@ def ladder_section(title: str, knob: str, analyses: dict, out: Path, doc: Path) 
 
 
 def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: dict, study_time: dict,
-                 quick: bool, scatter: list[RunRecord] = ()) -> None:
+                 quick: bool, scatter: dict | None = None) -> None:
     doc.parent.mkdir(parents=True, exist_ok=True)
     L = ["# Convergence: error against run time (issue 4)", "",
          f"Produced by `{command}` on {datetime.date.today().isoformat()} "
@@ -719,10 +724,10 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
         if knob in ladders:
             sections += ladder_section(titles[knob], knob, ladders[knob], out, doc)
     L += sections
-    spread = scatter_spread(scatter)
+    ensembles = {h: scatter_spread(recs) for h, recs in (scatter or {}).items()}
     if scatter:
-        L += scatter_section(scatter, spread)
-    L += recommendation_section(ladders, spread)
+        L += scatter_section(scatter, ensembles)
+    L += recommendation_section(ladders, ensembles)
     L += ["## Cost of this study", "",
           f"Impact runs: {study_time['n_runs']} ({study_time['n_new']} run by this invocation), "
           f"{study_time['cpu_s'] / 60:.1f} min CPU and {study_time['wall_s'] / 60:.1f} min wall in total "
@@ -786,43 +791,76 @@ def _data_notes(ladders: dict) -> list[str]:
 
 
 def scatter_spread(records) -> dict:
-    """Mean, sample standard deviation and largest deviation from the mean of the residual
-    velocity over the scatter runs (relative to the mean); empty without two successful runs."""
-    v = np.array([r.get("residual_velocity") for r in records if not r.error], dtype=float)
-    v = v[np.isfinite(v)]
+    """Mean, sample standard deviation, standard error of the mean and largest deviation from
+    the mean of the residual velocity over an ensemble (relative to the mean), with the mean
+    CPU time of a run; empty without two successful runs."""
+    ok = [r for r in records if not r.error and math.isfinite(r.get("residual_velocity"))]
+    v = np.array([r.get("residual_velocity") for r in ok], dtype=float)
     if v.size < 2:
         return {}
     mean = float(v.mean())
-    return {"n": int(v.size), "mean": mean, "std_rel": float(v.std(ddof=1) / abs(mean)),
-            "max_rel": float(np.abs(v - mean).max() / abs(mean))}
+    std = float(v.std(ddof=1))
+    return {"n": int(v.size), "mean": mean, "std_rel": std / abs(mean),
+            "sem_rel": std / math.sqrt(v.size) / abs(mean),
+            "max_rel": float(np.abs(v - mean).max() / abs(mean)),
+            "cpu_s": float(np.mean([r.get("cpu_s") for r in ok]))}
 
 
-def scatter_section(records: list[RunRecord], spread: dict) -> list[str]:
-    L = [f"## 5. Run-to-run scatter (damaged case, h_centre = {DT_MESH_MM:g} mm, dt_safety = {DEFAULT_SAFETY:g})", "",
-         "The same run with the impact velocity changed in its 12th digit (V0 x (1 + p)): the tearing "
-         "phase amplifies such round-off (as it amplifies the summation order of an MPI run), so no ladder "
-         "can resolve differences below this scatter.", ""]
-    rows = [[f"{r.perturbation:g}", _fmt(r.get("residual_velocity"), ".5g"), _fmt(r.get("absorbed_energy"), ".4g"),
-             _fmt(1e3 * r.get("max_deflection"), ".5g"), _fmt(r.get("n_steps"), ".0f"),
-             _fmt(1e3 * r.get("end_time"), ".4g"), r.error[:80] or r.values.get("end_reason", "")]
-            for r in records]
-    L += _md_table(["p", "v_res (m/s)", "E_abs (J)", "w_max (mm)", "steps", "end (ms)", "end reason"], rows)
-    if spread:
-        L += ["", f"Residual velocity over the {spread['n']} runs: mean {spread['mean']:.4g} m/s, standard "
-              f"deviation {100 * spread['std_rel']:.2f} %, largest deviation from the mean "
-              f"{100 * spread['max_rel']:.2f} %."]
+def ensemble_recommendation(ensembles: dict, tol: float = 0.02) -> dict:
+    """The coarsest mesh level (h_centre in m -> :func:`scatter_spread`) whose ensemble mean is
+    within ``tol`` of the finest level's, every finer level within too. Returns the level (None
+    when only the finest qualifies) and, per level, the distance of its mean from the finest's."""
+    levels = sorted((h for h, s in ensembles.items() if s), reverse=True)
+    if len(levels) < 2:
+        return {"h": None, "distance": {}}
+    ref = ensembles[levels[-1]]["mean"]
+    dist = {h: abs(ensembles[h]["mean"] - ref) / abs(ref) for h in levels}
+    h_ok = None
+    for h in reversed(levels[:-1]):          # from the second finest towards the coarsest
+        if dist[h] > tol:
+            break
+        h_ok = h
+    return {"h": h_ok, "distance": dist, "reference": ref}
+
+
+def scatter_section(scatter: dict, ensembles: dict) -> list[str]:
+    L = [f"## 5. Run-to-run scatter of the damaged case (dt_safety = {DEFAULT_SAFETY:g})", "",
+         "The same run with the impact velocity changed in its 12th digit (V0 x (1 + p), p = 0 is the run of "
+         "the mesh ladder): the tearing phase amplifies such round-off (as it amplifies the summation order "
+         "of an MPI run), so a single run per level cannot resolve differences below this scatter; the "
+         "ensemble means can, to within their standard errors.", ""]
+    for h, recs in sorted(scatter.items(), reverse=True):
+        L += [f"### h_centre = {h * 1e3:.4g} mm", ""]
+        rows = [[f"{r.perturbation:g}", _fmt(r.get("residual_velocity"), ".5g"), _fmt(r.get("absorbed_energy"), ".4g"),
+                 _fmt(1e3 * r.get("max_deflection"), ".5g"), _fmt(r.get("n_steps"), ".0f"),
+                 _fmt(1e3 * r.get("end_time"), ".4g"), _fmt(r.get("eroded_cells"), ".0f"),
+                 r.error[:80] or r.values.get("end_reason", "")] for r in recs]
+        L += _md_table(["p", "v_res (m/s)", "E_abs (J)", "w_max (mm)", "steps", "end (ms)", "eroded cells",
+                        "end reason"], rows) + [""]
+    rows = [[f"{h * 1e3:.4g}", str(s["n"]), f"{s['mean']:.4g}", _pct(s["std_rel"]), _pct(s["sem_rel"]),
+             _pct(s["max_rel"]), f"{s['cpu_s']:.0f}"] for h, s in sorted(ensembles.items(), reverse=True) if s]
+    L += ["Ensembles (residual velocity):", ""]
+    L += _md_table(["h_centre (mm)", "runs", "mean (m/s)", "std. deviation", "std. error of the mean",
+                    "largest deviation", "CPU s per run"], rows)
     return L + [""]
 
 
-def recommendation_section(ladders: dict, spread: dict | None = None) -> list[str]:
+def recommendation_section(ladders: dict, ensembles: dict | None = None) -> list[str]:
     L = ["## Recommendation", "",
          "Rule: the cheapest setting (CPU time) whose residual velocity is within 2 % of the converged "
          "value (the Richardson extrapolation if its observed order is sensible, else the finest level), "
          "with every costlier setting of the ladder within 2 % too.", ""]
-    if spread:
-        L += [f"With damage on, the run-to-run scatter (section 5: standard deviation "
-              f"{100 * spread['std_rel']:.2f} %, largest deviation {100 * spread['max_rel']:.2f} %) is the "
-              "resolution of the damaged ladders: a level's distance from the reference within it is noise.", ""]
+    ens = ensemble_recommendation(ensembles or {})
+    if ens["distance"]:
+        finest = min(ens["distance"])
+        dist = ", ".join(f"{h * 1e3:.4g} mm {100 * d:.2f} %" for h, d in sorted(ens["distance"].items(), reverse=True)
+                         if h != finest)
+        s = ensembles[finest]
+        L += [f"With damage on, single runs scatter by a standard deviation of {_pct(s['std_rel'])} "
+              f"(section 5, h_centre = {finest * 1e3:.4g} mm), so the damaged mesh ladder is judged by the "
+              f"ensemble means: distance from the finest ensemble's mean ({ens['reference']:.4g} m/s, standard "
+              f"error {_pct(s['sem_rel'])}): {dist}. Coarsest level within 2 %, every finer one too: "
+              + (f"h_centre = {ens['h'] * 1e3:.4g} mm." if ens["h"] is not None else "none but the finest."), ""]
     rows = []
     for knob in ("mesh", "dt"):
         for case, a in ladders.get(knob, {}).items():
@@ -987,17 +1025,17 @@ def run(args: argparse.Namespace) -> int:
         write_csv(out / "unitcell_summary.csv", uc["summary"])
         plot_unitcell(out / "unitcell_error_vs_time.png", uc)
 
-    # run-to-run scatter of the damaged case at the dt ladder's mesh and the default safety
-    scatter = []
-    base = [r for k, r in records if r.case == "damaged" and r.h_centre == dt_mesh * 1e-3
-            and r.dt_safety == DEFAULT_SAFETY]
-    for p in SCATTER_PERTURBATIONS if (base or "scatter" in args.only) else ():
-        if "scatter" in args.only or _stored("damaged", dt_mesh * 1e-3, DEFAULT_SAFETY, out / "runs", p):
-            scatter.append(run_one("damaged", dt_mesh * 1e-3, DEFAULT_SAFETY, out / "runs", rerun=args.rerun,
-                                   log=log, perturbation=p))
-    if scatter:
-        scatter = base[:1] + scatter
-        records += [("scatter", r) for r in scatter]
+    # run-to-run scatter of the damaged case: ensembles at the coarser mesh levels
+    scatter: dict[float, list[RunRecord]] = {}
+    levels = [] if args.quick else SCATTER_LEVELS_MM
+    for h in (x * 1e-3 for x in levels):
+        base = [r for k, r in records if k == "mesh" and r.case == "damaged" and r.h_centre == h]
+        recs = [run_one("damaged", h, DEFAULT_SAFETY, out / "runs", rerun=args.rerun, log=log, perturbation=p)
+                for p in SCATTER_PERTURBATIONS
+                if "scatter" in args.only or _stored("damaged", h, DEFAULT_SAFETY, out / "runs", p)]
+        if recs:
+            scatter[h] = base[:1] + recs
+            records += [("scatter", r) for r in recs]
     unique = {r.folder: r for _, r in records}
     study_time = {"n_runs": len(unique), "n_new": sum(r.new for r in unique.values()),
                   "cpu_s": sum(r.get("cpu_s") for r in unique.values()),

@@ -127,11 +127,26 @@ def test_scatter_runs_change_only_the_impact_velocity_and_have_their_own_folders
     assert len(names) == 1 + len(cv.SCATTER_PERTURBATIONS)
 
 
+def ensemble(h, values, cpu=10.0):
+    recs = [cv.RunRecord("damaged", h, 0.8, f"r{k}", values={"residual_velocity": v, "cpu_s": cpu})
+            for k, v in enumerate(values)]
+    return recs + [cv.RunRecord("damaged", h, 0.8, "bad", error="ImpactError: stopped")]
+
+
 def test_scatter_spread():
-    recs = [cv.RunRecord("damaged", 2e-3, 0.8, f"r{k}", values={"residual_velocity": v})
-            for k, v in enumerate((48.0, 50.0, 49.0))]
-    recs.append(cv.RunRecord("damaged", 2e-3, 0.8, "bad", error="ImpactError: stopped"))
-    s = cv.scatter_spread(recs)
-    assert s["n"] == 3 and s["mean"] == pytest.approx(49.0)
-    assert s["std_rel"] == pytest.approx(1.0 / 49.0) and s["max_rel"] == pytest.approx(1.0 / 49.0)
-    assert cv.scatter_spread(recs[:1]) == {}
+    s = cv.scatter_spread(ensemble(2e-3, (48.0, 50.0, 49.0, 49.0)))
+    assert s["n"] == 4 and s["mean"] == pytest.approx(49.0) and s["cpu_s"] == 10.0
+    std = np.std([48.0, 50.0, 49.0, 49.0], ddof=1)
+    assert s["std_rel"] == pytest.approx(std / 49.0) and s["sem_rel"] == pytest.approx(std / 2 / 49.0)
+    assert s["max_rel"] == pytest.approx(1.0 / 49.0)
+    assert cv.scatter_spread(ensemble(2e-3, (48.0,))) == {}
+
+
+def test_ensemble_recommendation_takes_the_coarsest_level_with_every_finer_mean_within_tol():
+    ens = {h: cv.scatter_spread(ensemble(h, v)) for h, v in
+           ((4e-3, (47.0, 47.4)), (2.83e-3, (45.0, 45.4)), (2e-3, (47.9, 48.3)), (1.41e-3, (48.0, 48.4)))}
+    rec = cv.ensemble_recommendation(ens)
+    assert rec["reference"] == pytest.approx(48.2)
+    assert rec["h"] == 2e-3          # 4 mm is within 2 % but 2.83 mm, finer, is not
+    assert rec["distance"][2.83e-3] == pytest.approx(3.0 / 48.2)
+    assert cv.ensemble_recommendation({2e-3: ens[2e-3]})["h"] is None
