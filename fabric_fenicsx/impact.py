@@ -29,7 +29,10 @@ Modelling decisions (the numbers behind them are in the project's report):
   K_max the largest wave modulus over the live points: the largest eigenvalue of the
   symmetric part of the surrogate tangent dP_i/dlambda_j (rows of yarns that can carry
   tension only: not broken, not slack) or the geometric stiffness P_i / lambda_i, at the
-  strains extrapolated to the next check. Re-checked every ``run.dt_check_interval`` steps
+  strains extrapolated to the next check, bounded per point by 1.05 max(alpha1, alpha2) times
+  the straight intact yarn's modulus (``WAVE_MODULUS_MARGIN``: no unit-cell state is stiffer;
+  the interpolant's slope across a jump of the compressive branch, up to 11 x that modulus,
+  collapsed dt 3 x in every damaged run before). Re-checked every ``run.dt_check_interval`` steps
   (and at each of the first ones after the first touch); dt is only ever lowered, and each
   change is reported. Deleted and eroded cells take no part, so a runaway cell cannot
   shrink dt; nor can the unit cell's compressive branch, which the tension-only membrane

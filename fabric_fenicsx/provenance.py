@@ -8,6 +8,7 @@ a study's report writer keeps its runs, editing the physics re-runs them.
 
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import json
@@ -21,14 +22,26 @@ MODEL_MODULES = ("materials.py", "fibril.py", "unitcell.py", "damage_solver.py",
 """The package's modules (globs relative to it) whose source determines an impact run's numbers."""
 
 
+def code_without_prose(source: str) -> str:
+    """The syntax tree of a module without its comments and docstrings, as text: what runs."""
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
+                    and isinstance(body[0].value.value, str):
+                node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree, annotate_fields=False)
+
+
 @functools.lru_cache(maxsize=None)
 def model_version() -> str:
-    """Short SHA-256 of the :data:`MODEL_MODULES` sources as they are on disk now (working-tree
-    edits included)."""
+    """Short SHA-256 of the :data:`MODEL_MODULES` as they are on disk now (working-tree edits
+    included), comments and docstrings left out: editing prose keeps stored runs."""
     h = hashlib.sha256()
     for path in sorted({p for pattern in MODEL_MODULES for p in PACKAGE.glob(pattern)}):
         h.update(path.relative_to(PACKAGE).as_posix().encode())
-        h.update(path.read_bytes())
+        h.update(code_without_prose(path.read_text()).encode())
     return h.hexdigest()[:12]
 
 

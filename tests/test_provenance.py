@@ -32,8 +32,11 @@ def test_the_model_version_follows_the_physics_modules_only(tmp_path, monkeypatc
         base = version()
         (copy / "convergence.py").write_text("# a report writer edited\n")
         assert version() == base
+        source = (copy / "impact.py").read_text()
+        (copy / "impact.py").write_text(source.replace('"""', '"""Prose edited. ', 1) + "\n# a comment\n")
+        assert version() == base                            # docstrings and comments are prose
         with open(copy / "fem" / "membrane.py", "a") as f:
-            f.write("\n# a physics module edited\n")
+            f.write("\n_A_PHYSICS_MODULE_EDITED = 1\n")
         assert version() != base
     finally:
         provenance.model_version.cache_clear()
