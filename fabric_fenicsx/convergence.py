@@ -168,7 +168,7 @@ CASES = {
 SCATTER_PERTURBATIONS = tuple(k * 1e-12 for k in range(1, 9))
 """Relative changes of the damaged case's impact velocity for the run-to-run scatter: far below
 any physical uncertainty, they show how much the tearing phase amplifies round-off."""
-SCATTER_LEVELS_MM = (4.0, 2.83, 2.0)
+SCATTER_LEVELS_MM = (4.0, 2.83, 2.0, 1.41)
 """Mesh levels (h_centre, mm; dt_safety 0.8) at which the damaged case runs as an ensemble (the
 unperturbed run of the mesh ladder and one run per perturbation): the ensemble means are what the
 damaged mesh ladder can compare, to within their standard errors."""
@@ -711,7 +711,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
         L += ["**Quick smoke version (`--quick`): tiny ladders, not a convergence study.**", ""]
     L += ["Re-running the command reuses every impact run whose folder under "
           f"`{_rel(out / 'runs', doc)}` holds a `summary.json` (or a recorded `error.json`) with the same "
-          "scene settings, and the stored unit-cell ladder (`unitcell.json`) if its element counts and "
+          "scene settings and model version (`fabric_fenicsx.provenance`), and the stored unit-cell ladder (`unitcell.json`) if its element counts and "
           "states are the same; `--rerun` computes everything again. Tables as CSV: "
           f"`{_rel(out, doc)}/*.csv`.", ""]
     sections = []
@@ -796,7 +796,7 @@ def scatter_spread(records) -> dict:
     CPU time of a run; empty without two successful runs."""
     ok = [r for r in records if not r.error and math.isfinite(r.get("residual_velocity"))]
     v = np.array([r.get("residual_velocity") for r in ok], dtype=float)
-    if v.size < 2:
+    if v.size < 2 or v.mean() == 0.0:
         return {}
     mean = float(v.mean())
     std = float(v.std(ddof=1))
@@ -806,21 +806,29 @@ def scatter_spread(records) -> dict:
             "cpu_s": float(np.mean([r.get("cpu_s") for r in ok]))}
 
 
-def ensemble_recommendation(ensembles: dict, tol: float = 0.02) -> dict:
+def ensemble_recommendation(ensembles: dict, tol: float = 0.02, k: float = 2.0) -> dict:
     """The coarsest mesh level (h_centre in m -> :func:`scatter_spread`) whose ensemble mean is
-    within ``tol`` of the finest level's, every finer level within too. Returns the level (None
-    when only the finest qualifies) and, per level, the distance of its mean from the finest's."""
+    within ``tol`` of the finest ensemble's mean, every finer level within too (point estimates;
+    None when only the finest qualifies). Per level: ``distance`` of its mean from the finest's
+    (relative), its standard error ``se`` (both means' errors combined) and a ``verdict``:
+    "within" if distance + k se <= tol, "beyond" if distance - k se > tol, else "undecided"."""
     levels = sorted((h for h, s in ensembles.items() if s), reverse=True)
     if len(levels) < 2:
-        return {"h": None, "distance": {}}
-    ref = ensembles[levels[-1]]["mean"]
-    dist = {h: abs(ensembles[h]["mean"] - ref) / abs(ref) for h in levels}
+        return {"h": None, "distance": {}, "se": {}, "verdict": {}}
+    finest = ensembles[levels[-1]]
+    ref = finest["mean"]
+    dist = {h: abs(ensembles[h]["mean"] - ref) / abs(ref) for h in levels[:-1]}
+    se = {h: math.hypot(ensembles[h]["sem_rel"] * ensembles[h]["mean"] / ref, finest["sem_rel"])
+          for h in levels[:-1]}
+    verdict = {h: "within" if dist[h] + k * se[h] <= tol else "beyond" if dist[h] - k * se[h] > tol
+               else "undecided" for h in levels[:-1]}
     h_ok = None
     for h in reversed(levels[:-1]):          # from the second finest towards the coarsest
         if dist[h] > tol:
             break
         h_ok = h
-    return {"h": h_ok, "distance": dist, "reference": ref}
+    return {"h": h_ok, "distance": dist, "se": se, "verdict": verdict, "reference": ref,
+            "finest": levels[-1]}
 
 
 def scatter_section(scatter: dict, ensembles: dict) -> list[str]:
@@ -852,15 +860,17 @@ def recommendation_section(ladders: dict, ensembles: dict | None = None) -> list
          "with every costlier setting of the ladder within 2 % too.", ""]
     ens = ensemble_recommendation(ensembles or {})
     if ens["distance"]:
-        finest = min(ens["distance"])
-        dist = ", ".join(f"{h * 1e3:.4g} mm {100 * d:.2f} %" for h, d in sorted(ens["distance"].items(), reverse=True)
-                         if h != finest)
+        finest = ens["finest"]
         s = ensembles[finest]
+        dist = "; ".join(f"{h * 1e3:.4g} mm: {100 * d:.2f} % +- {100 * ens['se'][h]:.2f} % ({ens['verdict'][h]})"
+                         for h, d in sorted(ens["distance"].items(), reverse=True))
         L += [f"With damage on, single runs scatter by a standard deviation of {_pct(s['std_rel'])} "
               f"(section 5, h_centre = {finest * 1e3:.4g} mm), so the damaged mesh ladder is judged by the "
-              f"ensemble means: distance from the finest ensemble's mean ({ens['reference']:.4g} m/s, standard "
-              f"error {_pct(s['sem_rel'])}): {dist}. Coarsest level within 2 %, every finer one too: "
-              + (f"h_centre = {ens['h'] * 1e3:.4g} mm." if ens["h"] is not None else "none but the finest."), ""]
+              f"ensemble means, against the finest ensemble ({finest * 1e3:.4g} mm, mean {ens['reference']:.4g} m/s), "
+              "not against a single finer run. Distance of each mean from it +- one standard error, and the "
+              f"verdict at two standard errors: {dist}. Coarsest level whose mean is within 2 %, every finer "
+              "one too: " + (f"h_centre = {ens['h'] * 1e3:.4g} mm." if ens["h"] is not None else
+                             f"none but the finest ensemble, {finest * 1e3:.4g} mm."), ""]
     rows = []
     for knob in ("mesh", "dt"):
         for case, a in ladders.get(knob, {}).items():
@@ -871,6 +881,8 @@ def recommendation_section(ladders: dict, ensembles: dict | None = None) -> list
                 r = rec["record"]
                 choice = (f"h_centre = {r.h_centre * 1e3:.4g} mm" if knob == "mesh"
                           else f"dt_safety = {r.dt_safety:g}")
+            if knob == "mesh" and case == "damaged" and ens["distance"]:
+                choice += " (single runs, within the scatter: see the ensembles above)"
             rows.append([knob, CASES[case]["label"], _fmt(rec["reference"], ".4g") + f" ({rec['reference_kind']})",
                          choice])
     L += _md_table(["knob", "case", "converged v_res (m/s)", "cheapest within 2 %"], rows)
@@ -992,8 +1004,11 @@ def run(args: argparse.Namespace) -> int:
     # runs of a knob not asked for are only read back (they must exist)
     records = run_ladders(todo, out / "runs", rerun=args.rerun, log=log)
     for knob, case, h, s in runs:
-        if knob not in args.only and _stored(case, h, s, out / "runs"):
-            records.append((knob, run_one(case, h, s, out / "runs", log=log)))
+        if knob not in args.only:
+            if _stored(case, h, s, out / "runs"):
+                records.append((knob, run_one(case, h, s, out / "runs", log=log)))
+            else:
+                log(f"  {run_name(case, h, s)}: not stored with this model version; left out (run --only {knob})")
     ladders: dict[str, dict] = {}
     for knob in knobs:
         param = "h_centre" if knob == "mesh" else "dt_safety"
@@ -1028,11 +1043,17 @@ def run(args: argparse.Namespace) -> int:
     # run-to-run scatter of the damaged case: ensembles at the coarser mesh levels
     scatter: dict[float, list[RunRecord]] = {}
     levels = [] if args.quick else SCATTER_LEVELS_MM
+    asked = "scatter" in args.only
     for h in (x * 1e-3 for x in levels):
-        base = [r for k, r in records if k == "mesh" and r.case == "damaged" and r.h_centre == h]
-        recs = [run_one("damaged", h, DEFAULT_SAFETY, out / "runs", rerun=args.rerun, log=log, perturbation=p)
+        base = [r for k, r in records if k == "mesh" and r.case == "damaged" and math.isclose(r.h_centre, h)
+                and r.dt_safety == DEFAULT_SAFETY]
+        recs = [run_one("damaged", h, DEFAULT_SAFETY, out / "runs", rerun=args.rerun and asked, log=log,
+                        perturbation=p)
                 for p in SCATTER_PERTURBATIONS
-                if "scatter" in args.only or _stored("damaged", h, DEFAULT_SAFETY, out / "runs", p)]
+                if asked or _stored("damaged", h, DEFAULT_SAFETY, out / "runs", p)]
+        if recs and not base:
+            log(f"  scatter at {h * 1e3:.4g} mm: the unperturbed run is not in the mesh ladder; "
+                "the ensemble has only the perturbed runs")
         if recs:
             scatter[h] = base[:1] + recs
             records += [("scatter", r) for r in recs]

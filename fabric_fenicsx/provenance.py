@@ -4,6 +4,11 @@ The studies (``table4``, ``convergence``, ``stability``) store each impact run i
 folder and reuse it when asked again. A stored run stands for a new one only if both its scene
 settings and the code that computes an impact (:data:`MODEL_MODULES`) are unchanged: editing
 a study's report writer keeps its runs, editing the physics re-runs them.
+
+Two limits: the surrogate's tiles are cached under their own key (``tiles.cache_key``: fabric,
+table settings, ``tiles.FORMAT_VERSION``), so a change to the unit cell's numbers must also
+bump ``FORMAT_VERSION`` or the re-runs read the old tiles; and the version is a dump of the
+syntax tree, which differs between Python minor versions (an upgrade re-runs everything).
 """
 
 from __future__ import annotations
@@ -23,7 +28,9 @@ MODEL_MODULES = ("materials.py", "fibril.py", "unitcell.py", "damage_solver.py",
 
 
 def code_without_prose(source: str) -> str:
-    """The syntax tree of a module without its comments and docstrings, as text: what runs."""
+    """The syntax tree of a module without its comments and its module, class and function
+    docstrings, as text. (String statements elsewhere, e.g. the docstring after a constant,
+    and message texts still count.)"""
     tree = ast.parse(source)
     for node in ast.walk(tree):
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
@@ -36,8 +43,9 @@ def code_without_prose(source: str) -> str:
 
 @functools.lru_cache(maxsize=None)
 def model_version() -> str:
-    """Short SHA-256 of the :data:`MODEL_MODULES` as they are on disk now (working-tree edits
-    included), comments and docstrings left out: editing prose keeps stored runs."""
+    """Short SHA-256 of the :data:`MODEL_MODULES` as they were on disk when this module was
+    first imported (with ``fabric_fenicsx.impact``; working-tree edits included), comments and
+    docstrings left out: editing them keeps stored runs."""
     h = hashlib.sha256()
     for path in sorted({p for pattern in MODEL_MODULES for p in PACKAGE.glob(pattern)}):
         h.update(path.relative_to(PACKAGE).as_posix().encode())
@@ -69,10 +77,13 @@ def load_if_same(path: str | Path, settings: dict) -> dict | None:
         return None
     try:
         record = json.loads(path.read_text())
-    except (json.JSONDecodeError, OSError):
+    except (ValueError, OSError):       # JSONDecodeError and UnicodeDecodeError are ValueErrors
         return None
-    if record.get("settings") != json.loads(json.dumps(settings)):
+    if not isinstance(record, dict) or record.get("settings") != json.loads(json.dumps(settings)):
         return None
     if record.get("model_version") != model_version():
         return None
     return record
+
+
+model_version()   # pinned at import: a run records the code it was started with

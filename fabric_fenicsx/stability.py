@@ -952,7 +952,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="report file (default docs/stability.md); plots go to its folder "
                              "<doc without .md>/ (docs/stability/)")
     parser.add_argument("--only", type=_names, default=None, metavar="NAME,...",
-                        help="run only these cases (the report still lists every stored case)")
+                        help="run only these cases (the report still lists every case stored with "
+                             "this model version)")
     parser.add_argument("--rerun", action="store_true", help="run the cases again even if stored")
     parser.add_argument("--no-doc", action="store_true", help="run the cases, write no report")
 

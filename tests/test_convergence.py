@@ -149,4 +149,8 @@ def test_ensemble_recommendation_takes_the_coarsest_level_with_every_finer_mean_
     assert rec["reference"] == pytest.approx(48.2)
     assert rec["h"] == 2e-3          # 4 mm is within 2 % but 2.83 mm, finer, is not
     assert rec["distance"][2.83e-3] == pytest.approx(3.0 / 48.2)
+    # each mean of two runs 0.4 apart has a standard error of 0.2 m/s
+    assert rec["se"][2e-3] == pytest.approx(math.hypot(0.2 / 48.2, 0.2 / 48.2))
+    assert rec["verdict"] == {4e-3: "undecided", 2.83e-3: "beyond", 2e-3: "within"}
     assert cv.ensemble_recommendation({2e-3: ens[2e-3]})["h"] is None
+    assert cv.scatter_spread(ensemble(2e-3, (1.0, -1.0))) == {}      # zero mean: no relative spread

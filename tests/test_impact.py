@@ -196,7 +196,9 @@ def test_the_wave_modulus_is_bounded_by_the_straight_yarn_across_a_jump_of_the_t
 def test_no_state_in_biaxial_tension_is_stiffer_than_the_straight_yarns(tmp_path):
     """The bound of `YarnStress.wave_modulus` is the physics, not a clip of real states: in
     biaxial tension the largest eigenvalue of the tangent stays below 1.05 alpha_max x the
-    straight-yarn modulus, and reaches it (crimp pulled out), at every damage level."""
+    straight-yarn modulus, and comes within 12 % of it (crimp pulled out), at every damage
+    level. On a coarse table built here (h = 0.004); the default table's scan (0.994) is in
+    the docstring of `impact.WAVE_MODULUS_MARGIN`."""
     from fabric_fenicsx.impact import WAVE_MODULUS_MARGIN
     from fabric_fenicsx.materials import zylon_as
     from fabric_fenicsx.surrogate import Surrogate
@@ -210,7 +212,7 @@ def test_no_state_in_biaxial_tension_is_stiffer_than_the_straight_yarns(tmp_path
         b = 0.5 * (t12 + t21)
         eig = 0.5 * (t11 + t22) + np.sqrt(0.25 * (t11 - t22) ** 2 + b * b)
         ratio = eig.max() / (k * max(a1, a2))
-        assert 0.85 < ratio <= WAVE_MODULUS_MARGIN, (a1, a2, ratio)
+        assert 0.88 < ratio <= WAVE_MODULUS_MARGIN, (a1, a2, ratio)
 
 
 def test_path_energy_is_the_unit_cell_energy_in_tension(tmp_path):
