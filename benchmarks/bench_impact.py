@@ -1,6 +1,6 @@
 """Benchmark of the impact driver (prints numbers; not a test).
 
-Runs demos/scenes/y90.toml at 57.3 m/s on its own 2 mm graded mesh (``make demo`` uses 4 mm:
+Runs demos/scenes/y90.toml at 57.3 m/s on its own 1.41 mm graded mesh (``make demo`` uses 4 mm:
 ``--set mesh.h_centre=0.004``) and
 prints the time per step split into strain evaluation, constitutive update (the surrogate),
 assembly of the internal force, contact, output and the rest, and the total wall time. Table

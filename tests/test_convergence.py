@@ -154,3 +154,15 @@ def test_ensemble_recommendation_takes_the_coarsest_level_with_every_finer_mean_
     assert rec["verdict"] == {4e-3: "undecided", 2.83e-3: "beyond", 2e-3: "within"}
     assert cv.ensemble_recommendation({2e-3: ens[2e-3]})["h"] is None
     assert cv.scatter_spread(ensemble(2e-3, (1.0, -1.0))) == {}      # zero mean: no relative spread
+
+
+def test_dt_ladder_mesh_per_case():
+    import argparse
+    parser = argparse.ArgumentParser()
+    cv.add_arguments(parser)
+    assert parser.parse_args(["--dt-mesh", "damaged=1.41", "--dt-mesh", "3"]).dt_mesh == [("damaged", 1.41), (None, 3.0)]
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--dt-mesh", "plastic=2"])
+    runs = cv.plan(["dt"], {}, [0.9, 0.8, 0.6], {"damaged": 1.41, "elastic": 2.0})
+    assert {(c, h) for _, c, h, _ in runs} == {("damaged", 1.41e-3), ("elastic", 2e-3)}
+    assert len(runs) == 6
