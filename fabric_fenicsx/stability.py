@@ -207,10 +207,13 @@ def make_fabric(spec: tuple[str, float], bending_bound: str = "max"):
 # ============================================================================ one case
 def case_settings(case: Case, base_scene: str = BASE_SCENE,
                   base_overrides: tuple[str, ...] = BASE_OVERRIDES) -> dict:
-    """What determines a case's result (compared before a case is skipped)."""
+    """What determines a case's result (compared before a case is skipped), the base scene
+    file's content included (an edit of its defaults re-runs the cases)."""
+    import hashlib
     fab = make_fabric(case.fabric).to_dict() if case.fabric else None
-    return {"base_scene": str(base_scene), "overrides": list(base_overrides) + list(case.overrides),
-            "fabric": fab}
+    text = Path(base_scene).read_bytes() if Path(base_scene).is_file() else b""
+    return {"base_scene": str(base_scene), "base_scene_sha256": hashlib.sha256(text).hexdigest()[:12],
+            "overrides": list(base_overrides) + list(case.overrides), "fabric": fab}
 
 
 def _cpu_seconds() -> float:
