@@ -1022,7 +1022,7 @@ def run(args: argparse.Namespace) -> int:
         dt_mesh.update({case: h} if case else {c: h for c in CASES})
     _check_ladders(levels, safeties)
     out.mkdir(parents=True, exist_ok=True)
-    command = "fabric-fenicsx convergence " + " ".join(sys.argv[2:]) if len(sys.argv) > 1 and \
+    command = " ".join(["fabric-fenicsx convergence", *sys.argv[2:]]) if len(sys.argv) > 1 and \
         sys.argv[1] == "convergence" else "fabric-fenicsx convergence"
 
     def log(text: str) -> None:
