@@ -732,7 +732,8 @@ DISCUSSION: dict[str, str] = {
         "otherwise like the base. (Before the wave-modulus bound of `YarnStress.wave_modulus`, "
         "at dt_safety 0.8, dt fell to 1.454e-7 s here against the base's 2.016e-7 s, and to "
         "1.842e-7 and 1.828e-7 s in angle-30 and large-damage; now, at dt_safety 0.9, it ends "
-        "at 2.288e-7 s, the base's 2.269e-7 s, and no damaged case falls below 2.238e-7 s.) An earlier run of this case, with the "
+        "at 2.288e-7 s, the base's 2.269e-7 s, and no damaged case on the centred mesh falls "
+        "below 2.238e-7 s.) An earlier run of this case, with the "
         "working-tree damage iteration being edited before commit ee18cae, stopped with a "
         "SurrogateError outside the impact guards (**finding 2**, fixed: such errors now stop "
         "the run through the guards, with step, time and place).",
