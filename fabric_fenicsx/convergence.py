@@ -1081,7 +1081,7 @@ def run(args: argparse.Namespace) -> int:
         write_csv(out / "unitcell_summary.csv", uc["summary"])
         plot_unitcell(out / "unitcell_error_vs_time.png", uc)
 
-    # run-to-run scatter of the damaged case: ensembles at the coarser mesh levels
+    # run-to-run scatter of the damaged case: ensembles at the SCATTER_LEVELS_MM mesh levels
     scatter: dict[float, list[RunRecord]] = {}
     levels = [] if args.quick else SCATTER_LEVELS_MM
     asked = "scatter" in args.only
