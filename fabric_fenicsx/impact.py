@@ -475,7 +475,8 @@ class ImpactSimulation:
         self.omega_straight = 2.0 * math.sqrt(k_straight / self.rho_A) / self.L_min
         self.xi = sc.run.damping
         beta = 2.0 * self.xi / self.omega_straight
-        self.material = YarnStress(self.surrogate, m.quadrature_weights_detJ, sc.material.damage, beta)
+        self.material = YarnStress(self.surrogate, m.quadrature_weights_detJ, sc.material.damage, beta,
+                                   straight_modulus=k_straight)
 
         clamped = edge_dofs(m.V, facet_tags, [EDGE_TAGS[e] for e in sc.boundary.clamped])
         self._clamped_blocks = np.unique(clamped // 3)   # local nodes, owned and ghost

@@ -23,7 +23,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parent
 
 MODEL_MODULES = ("materials.py", "fibril.py", "unitcell.py", "damage_solver.py", "interp.py",
-                 "tiles.py", "surrogate.py", "scene.py", "impact.py", "fem/*.py")
+                 "interp_kernel.py", "tiles.py", "surrogate.py", "scene.py", "impact.py", "fem/*.py")
 """The package's modules (globs relative to it) whose source determines an impact run's numbers."""
 
 

@@ -25,10 +25,11 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
 
-from fabric_fenicsx import interp
+from fabric_fenicsx import interp, interp_kernel
 from fabric_fenicsx.materials import Fabric
 from fabric_fenicsx.tiles import (QUANTITIES, Progress, cache_key, default_cache_dir, load_tile,
                                   save_tile, solve_blocks)
@@ -40,8 +41,21 @@ WARP_WEAKER, FILL_WEAKER = 0, 1
 MU_MARGIN = 2e-3
 """Stretch margin below mu_crit under which a table cell cannot start damage: the cubic
 interpolant overshoots its nodes by far less (neighbouring nodes differ by ~1e-4 in mu)."""
-_CHUNK = 16384  # points per interpolation chunk: keeps the (taps, chunk) temporaries in cache
+_NO_BLEND = np.empty(0)  # interp_kernel.evaluate: no interpolation in r
 R_LIMIT = 1e-4
+
+
+class Cells(NamedTuple):
+    """Interpolation cells of a batch of points: grid indices i (E1), j (E2) of each point's
+    cell and its local coordinates t1, t2 in [0, 1)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    t1: np.ndarray
+    t2: np.ndarray
+
+    def subset(self, rows) -> "Cells":
+        return Cells(self.i[rows], self.j[rows], self.t1[rows], self.t2[rows])
 
 
 class SurrogateError(RuntimeError):
@@ -148,10 +162,14 @@ class Surrogate:
         P = self.order + 1
         self._safe = {"intact": np.zeros((self.nE, self.nE), bool),
                       "damaged": np.zeros((self.nE, self.nE), bool)}
-        self._coef = {"intact": np.full((nq, self.nE, self.nE, P, P), np.nan),
-                      "damaged": np.full((nq, 2, self.nE, self.nE, self.r_nodes, P, P), np.nan)}
+        # Cell-major, quantities last but the polynomial: one gather fetches every quantity a
+        # point asks for.
+        self._coef = {"intact": np.full((self.nE, self.nE, nq, P, P), np.nan),
+                      "damaged": np.full((2, self.nE, self.nE, self.r_nodes, nq, P, P), np.nan)}
         self.built = {"intact": np.zeros((self.n_tiles,) * 2, bool),
                       "damaged": np.zeros((self.n_tiles,) * 2, bool)}
+        self._taps = (1, 3) if self.order == 3 else (0, 1)  # cell i's taps: nodes i - 1 .. i + 2
+        self._ready = {layer: np.zeros((self.nE, self.nE), bool) for layer in self.built}
         settings = {"resolution": self.h, "r_nodes": self.r_nodes, "E_lo": self.E_lo, "nE": self.nE,
                     "tile": self.tile, "n_elements": self.n_elements, "tol": cell.tol,
                     "alpha_broken": ALPHA_BROKEN, "r_limit": R_LIMIT, "r_spacing": "sqrt"}
@@ -237,6 +255,7 @@ class Surrogate:
             self.damaged[(slice(None),) + sl + (slice(0, self.r_nodes - 1),)] = values
             self.damaged[(slice(None),) + sl + (self.r_nodes - 1,)] = self.intact[sl][None]
         self.built[layer][a, b] = True
+        self._refresh_ready(layer)
         self._update_coefficients(layer, ia[0] - 2, ia[-1] + 2, jb[0] - 2, jb[-1] + 2)
 
     def _update_coefficients(self, layer: str, i0: int, i1: int, j0: int, j1: int) -> None:
@@ -254,15 +273,15 @@ class Surrogate:
             V = np.moveaxis(self.intact, -1, 0)  # (nq, nE, nE)
             F = np.stack([np.stack([V[:, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
                           for oa in offsets])
-            self._coef["intact"][:, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxij->xijpq", M, M, F,
-                                                                       optimize=True)
+            self._coef["intact"][i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxij->ijxpq", M, M, F,
+                                                                    optimize=True)
             mu = F[:, :, [_Q["mu1"], _Q["mu2"]]]  # (taps, taps, 2, ni, nj)
         else:
             V = np.moveaxis(self.damaged, -1, 0)  # (nq, 2, nE, nE, nr)
             F = np.stack([np.stack([V[:, :, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
                           for oa in offsets])
-            self._coef["damaged"][:, :, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxcijr->xcijrpq",
-                                                                          M, M, F, optimize=True)
+            self._coef["damaged"][:, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxcijr->cijrxpq",
+                                                                       M, M, F, optimize=True)
             mu = F[:, :, [_Q["mu1"], _Q["mu2"]]].max(axis=(3, 6))  # worst case over both cases and r
         limit = (self.mu_crit - MU_MARGIN)[None, None, :, None, None]
         with np.errstate(invalid="ignore"):  # NaN beside unbuilt tiles counts as unsafe
@@ -279,91 +298,85 @@ class Surrogate:
         for layer in layers:
             self.ensure_tiles(layer, [(a, b) for a in idx[0] for b in idx[1]])
 
-    def _cells(self, E1, E2):
-        """Interpolation cells of the points, building the tiles their taps touch."""
+    def _cells(self, E1, E2) -> Cells:
+        """Interpolation cells (i, j) and local coordinates (t1, t2) of the points."""
         i, t1 = interp.locate(E1, self.E_lo, self.h, self.nE, self.order)
         j, t2 = interp.locate(E2, self.E_lo, self.h, self.nE, self.order)
-        return i, j, t1, t2
+        return Cells(i, j, t1, t2)
 
     def _require(self, layer: str, i, j) -> None:
         """Build the tiles that the interpolation taps of cells (i, j) touch."""
-        lo = 1 if self.order == 3 else 0
-        span = 3 if self.order == 3 else 1
+        missing = ~self._ready[layer][i, j]
+        if not missing.any():
+            return
+        i, j = i[missing], j[missing]
+        lo, span, t = self._taps[0], self._taps[1], self.tile
         built = self.built[layer]
-        t = self.tile
-        i0, i1, j0, j1 = int(i.min()), int(i.max()), int(j.min()), int(j.max())
-        if built[(i0 - lo) // t:(i1 - lo + span) // t + 1, (j0 - lo) // t:(j1 - lo + span) // t + 1].all():
-            return  # the bounding box of the tiles touched is built
-        ta = ((i - lo) // t, (i - lo + span) // t)
-        tb = ((j - lo) // t, (j - lo + span) // t)
         touched = np.zeros_like(built)
-        for p in (0, 1):
-            for q in (0, 1):
-                touched[ta[p], tb[q]] = True
+        for a in ((i - lo) // t, (i - lo + span) // t):
+            for b in ((j - lo) // t, (j - lo + span) // t):
+                touched[a, b] = True
         self.ensure_tiles(layer, [tuple(p) for p in np.argwhere(touched & ~built)])
 
+    def _refresh_ready(self, layer: str) -> None:
+        """Cells whose interpolation taps all lie in built tiles (see :meth:`_require`)."""
+        lo, span = self._taps
+        k = np.arange(self.nE)
+        first = np.minimum(np.maximum(k - lo, 0) // self.tile, self.n_tiles - 1)
+        last = np.minimum(np.maximum(k - lo + span, 0) // self.tile, self.n_tiles - 1)
+        b = self.built[layer]
+        self._ready[layer] = (b[np.ix_(first, first)] & b[np.ix_(first, last)]
+                              & b[np.ix_(last, first)] & b[np.ix_(last, last)])
+
     # ------------------------------------------------------------------ interpolation
-    def _lookup(self, E1, E2, r, case, qidx, derivative=False):
-        """Interpolated table values (npts, len(qidx)) at damage-scaled states (r, case).
+    def _lookup(self, cells: Cells, r, case, qidx, derivative=False):
+        """Interpolated table values (npts, len(qidx)) at damage-scaled states (r, case);
+        ``r=None``: every point intact (r = 1).
 
         Points at r = 1 use the 2D intact layer; the others the damaged layer, linear in
         sqrt(r). Each cell's interpolant is a polynomial in the local coordinates, evaluated
-        from its precomputed coefficients, in chunks that keep the temporaries in cache.
+        from its precomputed coefficients by :func:`interp_kernel.evaluate`.
         """
-        n = E1.size
-        out = np.zeros((n, len(qidx)))
-        d1 = np.zeros_like(out) if derivative else None
-        d2 = np.zeros_like(out) if derivative else None
+        n = cells.i.size
+        out = np.empty((n, len(qidx)))
+        d1 = np.empty_like(out) if derivative else out
+        d2 = np.empty_like(out) if derivative else out
         if n == 0:
             return (out, d1, d2) if derivative else out
-        i, j, t1, t2 = self._cells(E1, E2)
-        intact = r >= 1.0
-        everything = bool(intact.all())
-        groups = [("intact", None if everything else np.flatnonzero(intact))]
-        if not everything:
-            groups.append(("damaged", np.flatnonzero(~intact)))
-        P2 = (self.order + 1) ** 2
+        intact = None if r is None else r >= 1.0
+        if intact is None or intact.all():
+            groups = [("intact", None)]
+        elif not intact.any():
+            groups = [("damaged", None)]
+        else:
+            groups = [("intact", np.flatnonzero(intact)), ("damaged", np.flatnonzero(~intact))]
+        nq, P, nr = len(QUANTITIES), self.order + 1, self.r_nodes
+        q = np.asarray(qidx, dtype=np.int64)
         for layer, sel in groups:
-            if sel is not None and sel.size == 0:
-                continue
-            ii, jj = (i, j) if sel is None else (i[sel], j[sel])
-            self._require(layer, ii, jj)
-            coef = self._coef[layer].reshape(len(QUANTITIES), -1, P2)
-            for lo in range(0, ii.size, _CHUNK):
-                rows = slice(lo, min(lo + _CHUNK, ii.size)) if sel is None else sel[lo:lo + _CHUNK]
-                cell = ii[lo:lo + _CHUNK] * self.nE + jj[lo:lo + _CHUNK]
-                T1, T2 = interp.powers(t1[rows], self.order), interp.powers(t2[rows], self.order)
-                # value = sum_pq C_pq t1^p t2^q = C . W with W the flattened outer product
-                W = (T1[:, :, None] * T2[:, None, :]).reshape(-1, P2)
+            c = cells if sel is None else cells.subset(sel)
+            self._require(layer, c.i, c.j)
+            coef = self._coef[layer].reshape(-1)  # rows of P x P: (cell, r node, quantity)
+            cell = c.i * self.nE + c.j
+            if layer == "intact":
+                rows, tr = (cell * nq)[:, None] + q, _NO_BLEND
+            else:
+                rs = np.sqrt(r if sel is None else r[sel]) * (nr - 1)
+                k = np.minimum(rs.astype(np.int64), nr - 2)
+                tr = rs - k
+                cs = case if sel is None else case[sel]
+                rows = (((cs * self.nE * self.nE + cell) * nr + k) * nq)[:, None] + q
+            if sel is None:
+                o, g1, g2 = out, d1, d2
+            else:
+                o = np.empty((sel.size, len(qidx)))
+                g1 = np.empty_like(o) if derivative else o
+                g2 = np.empty_like(o) if derivative else o
+            interp_kernel.evaluate(coef, P, rows, c.t1, c.t2, rows + nq, tr, o, g1, g2, derivative,
+                                   1.0 / self.h)
+            if sel is not None:
+                out[sel] = o
                 if derivative:
-                    dT1 = interp.powers(t1[rows], self.order, True) / self.h
-                    dT2 = interp.powers(t2[rows], self.order, True) / self.h
-                    W1 = (dT1[:, :, None] * T2[:, None, :]).reshape(-1, P2)
-                    W2 = (T1[:, :, None] * dT2[:, None, :]).reshape(-1, P2)
-                if layer == "intact":
-                    cells, wr = [cell], [None]
-                else:
-                    nr = self.r_nodes
-                    rs = np.sqrt(r[rows]) * (nr - 1)
-                    k = np.minimum(np.floor(rs).astype(np.int64), nr - 2)
-                    tr = rs - k
-                    base = ((case[rows] * self.nE * self.nE + cell) * nr) + k
-                    cells, wr = [base, base + 1], [1.0 - tr, tr]
-                for c, q in enumerate(qidx):
-                    val = np.zeros(W.shape[0])
-                    g1 = np.zeros_like(val) if derivative else None
-                    g2 = np.zeros_like(val) if derivative else None
-                    for cc, w in zip(cells, wr):
-                        C = np.take(coef[q], cc, axis=0)  # (m, P2)
-                        v = np.einsum("mk,mk->m", C, W)
-                        val += v if w is None else w * v
-                        if derivative:
-                            v1, v2 = np.einsum("mk,mk->m", C, W1), np.einsum("mk,mk->m", C, W2)
-                            g1 += v1 if w is None else w * v1
-                            g2 += v2 if w is None else w * v2
-                    out[rows, c] = val
-                    if derivative:
-                        d1[rows, c], d2[rows, c] = g1, g2
+                    d1[sel], d2[sel] = g1, g2
         return (out, d1, d2) if derivative else out
 
     # ------------------------------------------------------------------ inputs
@@ -415,45 +428,51 @@ class Surrogate:
         raise ValueError(f"surrogate inputs out of range: E1 in [{E1.min()}, {E1.max()}], "
                          f"E2 in [{E2.min()}, {E2.max()}]")
 
-    def _below_damage(self, E1, E2, a1, a2) -> np.ndarray:
+    def _below_damage(self, cells: Cells, a1, a2) -> np.ndarray:
         """True where every table node the point's interpolation uses (all r) has both
         stretches at least MU_MARGIN below mu_crit, so its damage cannot change."""
-        i, j, _, _ = self._cells(E1, E2)
-        intact = (a1 >= 1.0) & (a2 >= 1.0)
-        safe = np.empty(E1.size, bool)
-        safe[intact] = self._safe["intact"][i[intact], j[intact]]
-        safe[~intact] = self._safe["damaged"][i[~intact], j[~intact]]
+        flat = cells.i * self.nE + cells.j
+        safe = self._safe["intact"].ravel()[flat]
+        damaged = (a1 < 1.0) | (a2 < 1.0)
+        if damaged.any():
+            safe[damaged] = self._safe["damaged"].ravel()[flat[damaged]]
         return safe
 
-    def lookup(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False):
+    def lookup(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False,
+               cells: Cells | None = None):
         """Raw table values (npts, len(quantities)) at frozen damage (alpha1, alpha2): forces
         and Psi scaled by alpha_max (damage scaling), signed (not tension-only), with the
         derivatives d/dE1 and d/dE2 when ``derivative``. The hot-path access for solvers:
         1-D float arrays inside ``E_table`` and alphas in [0, 1] are expected and not
-        checked (:meth:`evaluate` checks its inputs). Quantities: any of ``QUANTITIES``."""
-        amax = np.maximum(a1, a2)
-        alive = amax > 0
-        with np.errstate(invalid="ignore", divide="ignore"):
-            r = np.where(alive, np.minimum(a1, a2) / amax, 1.0)
-        r = np.where(r < ALPHA_BROKEN, 0.0, r)
-        case = np.where(a1 < a2, WARP_WEAKER, FILL_WEAKER)
+        checked (:meth:`evaluate` checks its inputs). Quantities: any of ``QUANTITIES``.
+        ``cells``: the points' :meth:`_cells`, when the caller has them already."""
+        cells = self._cells(E1, E2) if cells is None else cells
         qidx = [_Q[q] for q in quantities]
-        res = self._lookup(E1, E2, r, case, qidx, derivative)
-        vals, d1, d2 = res if derivative else (res, None, None)
-        scale = np.array([0.0 if q.startswith("mu") else 1.0 for q in quantities])
-        factor = np.where(scale[None, :] > 0, np.where(alive, amax, 0.0)[:, None], 1.0)
-        vals = vals * factor
-        if derivative:
-            d1, d2 = d1 * factor, d2 * factor
-        # A broken yarn carries nothing; its stretch is reported as complete failure.
+        amin = np.minimum(a1, a2)
+        if amin.size and amin.min() >= 1.0:  # all intact: no damage scaling
+            return self._lookup(cells, None, None, qidx, derivative)
+        amax = np.maximum(a1, a2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = np.where(amax > 0, amin / amax, 1.0)
+        r[r < ALPHA_BROKEN] = 0.0
+        case = np.where(a1 < a2, WARP_WEAKER, FILL_WEAKER)
+        res = self._lookup(cells, r, case, qidx, derivative)
+        arrays = res if derivative else (res,)
+        forces = [c for c, q in enumerate(quantities) if not q.startswith("mu")]
+        for x in arrays:
+            x[:, forces] *= amax[:, None]  # amax = 0 (both broken): no force
+        # A broken yarn carries nothing (nor stiffness); its stretch is reported as complete failure.
         for i, a in enumerate((a1, a2)):
             dead = a == 0
-            if dead.any():
-                if f"P{i + 1}" in quantities:
-                    vals[dead, quantities.index(f"P{i + 1}")] = 0.0
-                if f"mu{i + 1}" in quantities:
-                    vals[dead, quantities.index(f"mu{i + 1}")] = self.fabric.damage.mu_complete(self.mu_crit[i])
-        return (vals, d1, d2) if derivative else vals
+            if not dead.any():
+                continue
+            if f"P{i + 1}" in quantities:
+                for x in arrays:
+                    x[dead, quantities.index(f"P{i + 1}")] = 0.0
+            if f"mu{i + 1}" in quantities:
+                mu_complete = self.fabric.damage.mu_complete(self.mu_crit[i])
+                arrays[0][dead, quantities.index(f"mu{i + 1}")] = mu_complete
+        return res
 
     # ------------------------------------------------------------------ public API
     def evaluate(self, E1, E2, alpha1, alpha2, tension_only: bool = True):
@@ -478,17 +497,19 @@ class Surrogate:
                                                 ("alpha1_hist", "alpha2_hist"))
         alpha = np.stack((a1h, a2h), axis=1)
         hist = alpha.copy()
+        cells = self._cells(E1, E2)
         if return_mu:
-            vals = self.lookup(E1, E2, a1h, a2h)
+            vals = self.lookup(E1, E2, a1h, a2h, cells=cells)
             target = self._target(vals, hist)
         else:
             # Points in cells whose stretches stay well below mu_crit need no stretch at all.
             vals = np.full((E1.size, 4), np.nan)
-            vals[:, :2] = self.lookup(E1, E2, a1h, a2h, ("P1", "P2"))
-            risk = np.flatnonzero(~self._below_damage(E1, E2, a1h, a2h))
+            vals[:, :2] = self.lookup(E1, E2, a1h, a2h, ("P1", "P2"), cells=cells)
+            risk = np.flatnonzero(~self._below_damage(cells, a1h, a2h))
             target = hist.copy()
             if risk.size:
-                vals[risk, 2:] = self.lookup(E1[risk], E2[risk], a1h[risk], a2h[risk], ("mu1", "mu2"))
+                vals[risk, 2:] = self.lookup(E1[risk], E2[risk], a1h[risk], a2h[risk], ("mu1", "mu2"),
+                                             cells=cells.subset(risk))
                 target[risk] = self._target(vals[risk], hist[risk])
         todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
         self.last_damaging = todo.size
@@ -528,11 +549,6 @@ class Surrogate:
         E1, E2, a1, a2, shape = self._inputs(E1, E2, alpha1, alpha2)
         _, d1, d2 = self.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
         return tuple(x.reshape(shape) for x in lambda_tangent(E1, E2, d1, d2))
-
-    def max_wave_modulus(self, E1, E2, alpha1, alpha2) -> float:
-        """Largest dP_i/dlambda_i over the points (N/m), for the explicit stable time step."""
-        t11, _, _, t22 = self.tangent(E1, E2, alpha1, alpha2)
-        return float(max(np.max(t11, initial=0.0), np.max(t22, initial=0.0)))
 
     def respond(self, E1: float, E2: float, alpha_hist=(1.0, 1.0)):
         """A material-point result like :meth:`UnitCell.respond` (signed P, for static scenes)."""

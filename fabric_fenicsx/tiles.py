@@ -3,7 +3,9 @@
 A tile is a block of T x T grid nodes in (E1, E2) for one layer: the intact layer
 (alpha = (1, 1)) or the damaged layer (the weaker yarn's relative integrity r < 1, for both
 "warp weaker" and "fill weaker"). Each block is solved by warm-started sweeps along grid
-lines, serpentine so that consecutive solves are neighbours, on a pool of processes.
+lines, serpentine so that consecutive solves are neighbours, on a pool of processes; each
+block's first node is solved from the unit cell's reference state, so a tile is the same
+whichever blocks a worker solved before it.
 Tiles are cached on disk as ``.npz`` files under a key derived from the fabric, the
 solver settings and the grid; each file stores that key and a checksum of its data and
 is rebuilt when either does not match.
@@ -26,7 +28,9 @@ QUANTITIES = ("P1", "P2", "mu1", "mu2", "V", "Psi")
 """Tabulated per node: P_i (N/m, Eq. 2-31), maximum stretches mu_i, contact force V (N) and
 stored energy Psi (J/m^2) of the unit cell, at the node's (E1, E2, alpha)."""
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""2: each block starts from the unit cell's reference state (1 warm-started its first node
+from the block the worker had solved before: tiles depended on build order)."""
 
 
 def default_cache_dir() -> Path:
@@ -82,9 +86,11 @@ def _worker_init(fabric_dict: dict, n_elements: int) -> None:
 
 
 def _solve_block(task):
-    """Solve one block: nodes E1s x E2s at one alpha, as a serpentine warm-started sweep."""
+    """Solve one block: nodes E1s x E2s at one alpha, as a serpentine warm-started sweep
+    from the reference state, so that a block does not depend on the blocks solved before."""
     tag, alpha, E1s, E2s = task
     cell = _WORKER_CELL
+    cell.forget()
     out = np.empty((len(E1s), len(E2s), len(QUANTITIES)))
     for j, E2 in enumerate(E2s):
         order = range(len(E1s)) if j % 2 == 0 else range(len(E1s) - 1, -1, -1)

@@ -224,6 +224,12 @@ class UnitCell:
         lam1, lam2, alpha_hist = self._check(E1, E2, alpha_hist, "alpha_hist")
         return self._respond(lam1, lam2, alpha_hist)
 
+    def forget(self) -> None:
+        """Forget the previous solution: the next solve starts from the reference
+        (stress-free) state, so its result does not depend on what was solved before. Where
+        the cell has several equilibria (compressed yarns) warm starts pick among them."""
+        self._last = None
+
     # ------------------------------------------------------------------ damage iteration
     def _target(self, res: UnitCellResult, alpha_hist: np.ndarray) -> np.ndarray:
         mu = np.array([res.mu1_max, res.mu2_max])

@@ -172,4 +172,20 @@ def test_skipping_the_stretch_lookup_below_damage_changes_nothing(sur):
     full = sur.update(E1, E2, hist[:, 0], hist[:, 1], return_mu=True)[:4]
     for a, b in zip(fast, full):
         np.testing.assert_array_equal(a, b)
-    assert 0 < sur._below_damage(E1, E2, hist[:, 0], hist[:, 1]).mean() < 1
+    assert 0 < sur._below_damage(sur._cells(E1, E2), hist[:, 0], hist[:, 1]).mean() < 1
+
+
+@pytest.mark.parametrize("alpha", [(1.0, 1.0), (0.011, 1.0), (1.0, 1e-4)])
+def test_a_tile_block_does_not_depend_on_the_block_solved_before(alpha):
+    """Where the unit cell has several equilibria (both yarns compressed, E2 near the table's
+    end) a warm start from another block used to pick another one: 4e5 N/m apart in P2."""
+    from fabric_fenicsx import tiles
+    E1s = np.arange(-0.06, 0.1, 0.008)
+    E2s = np.array([-0.06, -0.056])
+    tiles._worker_init(FABRIC.to_dict(), 24)
+    _, fresh = tiles._solve_block(("b", alpha, E1s, E2s))
+    for before in [(0.05, 0.05), (-0.05, 0.02), (0.09, -0.06)]:
+        tiles._worker_init(FABRIC.to_dict(), 24)
+        tiles._solve_block(("a", alpha, np.array([before[0]]), np.array([before[1]])))
+        _, after = tiles._solve_block(("b", alpha, E1s, E2s))
+        np.testing.assert_array_equal(after, fresh)
