@@ -170,6 +170,7 @@ class Surrogate:
                       "damaged": np.zeros((self.n_tiles,) * 2, bool)}
         self._taps = (1, 3) if self.order == 3 else (0, 1)  # cell i's taps: nodes i - 1 .. i + 2
         self._ready = {layer: np.zeros((self.nE, self.nE), bool) for layer in self.built}
+        self._kernel_quantities = {}  # quantities -> interp_kernel.lookup's arguments for them
         settings = {"resolution": self.h, "r_nodes": self.r_nodes, "E_lo": self.E_lo, "nE": self.nE,
                     "tile": self.tile, "n_elements": self.n_elements, "tol": cell.tol,
                     "alpha_broken": ALPHA_BROKEN, "r_limit": R_LIMIT, "r_spacing": "sqrt"}
@@ -381,7 +382,9 @@ class Surrogate:
 
     # ------------------------------------------------------------------ inputs
     def _inputs(self, E1, E2, a1, a2, names=("alpha1", "alpha2")):
-        arrays = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (E1, E2, a1, a2)))
+        arrays = [np.asarray(x, dtype=float) for x in (E1, E2, a1, a2)]
+        if any(x.shape != arrays[0].shape for x in arrays):
+            arrays = [np.array(x) for x in np.broadcast_arrays(*arrays)]  # writeable copies
         E1, E2, a1, a2 = (np.ascontiguousarray(x).ravel() for x in arrays)
         if not E1.size:
             return E1, E2, a1, a2, arrays[0].shape
@@ -438,14 +441,54 @@ class Surrogate:
             safe[damaged] = self._safe["damaged"].ravel()[flat[damaged]]
         return safe
 
-    def lookup(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False,
-               cells: Cells | None = None):
+    def lookup(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False):
         """Raw table values (npts, len(quantities)) at frozen damage (alpha1, alpha2): forces
         and Psi scaled by alpha_max (damage scaling), signed (not tension-only), with the
         derivatives d/dE1 and d/dE2 when ``derivative``. The hot-path access for solvers:
         1-D float arrays inside ``E_table`` and alphas in [0, 1] are expected and not
         checked (:meth:`evaluate` checks its inputs). Quantities: any of ``QUANTITIES``.
-        ``cells``: the points' :meth:`_cells`, when the caller has them already."""
+        Values come from the compiled :func:`interp_kernel.lookup`, derivatives from
+        :meth:`_lookup_numpy` (the same interpolant)."""
+        if derivative:
+            return self._lookup_numpy(E1, E2, a1, a2, quantities, True)
+        return self._values(E1, E2, a1, a2, quantities)[0]
+
+    def _values(self, E1, E2, a1, a2, quantities):
+        """:meth:`lookup`'s values, compiled, and per point whether its damage may change
+        (True) or not (False: :meth:`_below_damage`)."""
+        E1, E2, a1, a2 = (np.ascontiguousarray(x, dtype=float) for x in (E1, E2, a1, a2))
+        quantities = tuple(quantities)
+        spec = self._kernel_quantities.get(quantities)
+        if spec is None:
+            law = self.fabric.damage
+            dead = [np.full(len(quantities), np.nan) for _ in range(2)]
+            for i in range(2):
+                for c, q in enumerate(quantities):
+                    if q == f"P{i + 1}":
+                        dead[i][c] = 0.0
+                    elif q == f"mu{i + 1}":
+                        dead[i][c] = law.mu_complete(self.mu_crit[i])
+            spec = (np.array([_Q[q] for q in quantities], dtype=np.int64),
+                    np.array([not q.startswith("mu") for q in quantities]), dead[0], dead[1])
+            self._kernel_quantities[quantities] = spec
+        out = np.empty((E1.size, len(quantities)))
+        flag = np.empty(E1.size, np.int8)
+        first, last = self._taps[0], self.nE - 2 - self._taps[0]  # interp.locate's clip
+        interp_kernel.lookup(
+            E1, E2, a1, a2, self._coef["intact"].reshape(-1), self._coef["damaged"].reshape(-1),
+            self._ready["intact"], self._ready["damaged"], self._safe["intact"], self._safe["damaged"],
+            self.E_lo, self.h, first, last, self.r_nodes, len(QUANTITIES), *spec, ALPHA_BROKEN,
+            self.order + 1, out, flag)
+        missing = np.flatnonzero(flag == 2)
+        if missing.size:  # tiles not built yet: the numpy path builds them
+            sub = [x[missing] for x in (E1, E2, a1, a2)]
+            cells = self._cells(sub[0], sub[1])
+            out[missing] = self._lookup_numpy(*sub, quantities, cells=cells)
+            flag[missing] = ~self._below_damage(cells, sub[2], sub[3])
+        return out, flag.astype(bool)
+
+    def _lookup_numpy(self, E1, E2, a1, a2, quantities, derivative=False, cells: Cells | None = None):
+        """:meth:`lookup` in numpy, with derivatives; builds the tiles it needs."""
         cells = self._cells(E1, E2) if cells is None else cells
         qidx = [_Q[q] for q in quantities]
         amin = np.minimum(a1, a2)
@@ -497,21 +540,21 @@ class Surrogate:
                                                 ("alpha1_hist", "alpha2_hist"))
         alpha = np.stack((a1h, a2h), axis=1)
         hist = alpha.copy()
-        cells = self._cells(E1, E2)
         if return_mu:
-            vals = self.lookup(E1, E2, a1h, a2h, cells=cells)
+            vals = self.lookup(E1, E2, a1h, a2h)
             target = self._target(vals, hist)
+            todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
         else:
-            # Points in cells whose stretches stay well below mu_crit need no stretch at all.
+            # Points in cells whose stretches stay well below mu_crit need no stretch at all:
+            # their target is their history.
             vals = np.full((E1.size, 4), np.nan)
-            vals[:, :2] = self.lookup(E1, E2, a1h, a2h, ("P1", "P2"), cells=cells)
-            risk = np.flatnonzero(~self._below_damage(cells, a1h, a2h))
+            vals[:, :2], risk = self._values(E1, E2, a1h, a2h, ("P1", "P2"))
+            risk = np.flatnonzero(risk)
             target = hist.copy()
             if risk.size:
-                vals[risk, 2:] = self.lookup(E1[risk], E2[risk], a1h[risk], a2h[risk], ("mu1", "mu2"),
-                                             cells=cells.subset(risk))
+                vals[risk, 2:] = self.lookup(E1[risk], E2[risk], a1h[risk], a2h[risk], ("mu1", "mu2"))
                 target[risk] = self._target(vals[risk], hist[risk])
-        todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
+            todo = risk[np.any(hist[risk] - target[risk] > tol, axis=1)]
         self.last_damaging = todo.size
         if todo.size:
             vals[todo], alpha[todo] = self._damage_iteration(E1[todo], E2[todo], hist[todo],

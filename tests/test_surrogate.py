@@ -189,3 +189,23 @@ def test_a_tile_block_does_not_depend_on_the_block_solved_before(alpha):
         tiles._solve_block(("a", alpha, np.array([before[0]]), np.array([before[1]])))
         _, after = tiles._solve_block(("b", alpha, E1s, E2s))
         np.testing.assert_array_equal(after, fresh)
+
+
+def test_compiled_lookup_matches_the_numpy_lookup(sur):
+    """interp_kernel.lookup repeats _cells + _lookup_numpy + _below_damage in one loop:
+    same values (to round-off of the two summation orders) and the same damage-risk flags,
+    intact, damaged (both cases, every r), broken yarns and both yarns broken."""
+    rng = np.random.default_rng(7)
+    n = 4000
+    E1 = rng.uniform(-0.05, 0.08, n)
+    E2 = rng.uniform(-0.05, 0.06, n)
+    a = rng.choice([1.0, 0.7, 0.3, 0.01, 1e-7, 0.0], size=(n, 2))
+    quantities = ("P1", "P2", "mu1", "mu2", "V", "Psi")
+    numpy_vals = sur._lookup_numpy(E1, E2, a[:, 0], a[:, 1], quantities)
+    compiled, risk = sur._values(E1, E2, a[:, 0], a[:, 1], quantities)
+    scale = np.abs(numpy_vals).max(axis=0)
+    np.testing.assert_allclose(compiled, numpy_vals, rtol=0, atol=1e-12 * scale.max())
+    np.testing.assert_array_equal(risk, ~sur._below_damage(sur._cells(E1, E2), a[:, 0], a[:, 1]))
+    assert 0 < risk.mean() < 1
+    dead = a[:, 0] == 0
+    assert np.all(compiled[dead, 0] == 0) and dead.any()
