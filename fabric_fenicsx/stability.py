@@ -697,7 +697,7 @@ DISCUSSION: dict[str, str] = {
         "pulled out) and later damage (0.574 ms). Clean.",
     "stretch-x10":
         "A0 x 10 makes the straight yarn 10 x stiffer: the final dt is 3.0 x smaller than the "
-        "base's (7.491e-8 against 2.269e-7 s; sqrt(10) = 3.16 for the wave speed alone) and the "
+        "base's (7.478e-8 against 2.269e-7 s; sqrt(10) = 3.16 for the wave speed alone) and the "
         "run takes 7618 steps instead of 2628. The same deflection needs less yarn stretch, so "
         "no yarn is damaged within 0.6 ms. The time-step control follows the stiffer material; "
         "the energy error stays at the base's level.",
@@ -705,8 +705,8 @@ DISCUSSION: dict[str, str] = {
         "The degenerate unit cell (flat yarns: no height, no contact force) is accepted and "
         "solved: the surrogate tabulated it like any other fabric, without an error or a "
         "warning. With no crimp to pull out, the fabric is at its straight-yarn stiffness from "
-        "the first step: dt is never lowered, damage starts at 0.147 ms (about a third of "
-        "the base's time) and 30 cells are eroded by 0.6 ms. No NaN, no stop: a crimp-free "
+        "the first step: dt stays at its first value (2.271e-7 s), damage starts at 0.147 ms (about a third of "
+        "the base's time) and 29 cells are eroded by 0.6 ms. No NaN, no stop: a crimp-free "
         "fabric is a valid, if extreme, input.",
     "crimp-10":
         "10 % crimp (Phi_L = 0.6101 rad for both yarns; areal density 0.1707 against 0.1581 "
@@ -747,7 +747,7 @@ DISCUSSION: dict[str, str] = {
         "(15.3 J) the most of the 57.3 m/s cases. Clean.",
     "edge-20mm":
         "The short yarns between the projectile and the clamped edge strain fast: damage starts "
-        "at 0.087 ms at 4.8 mm deflection and 31 cells are eroded; the fabric stays in one "
+        "at 0.087 ms at 4.8 mm deflection and 30 cells are eroded; the fabric stays in one "
         "piece. Live cells are compressed to E = -0.498 (a cell almost collapsed along one "
         "yarn, where the tension-only membrane has no stiffness): E = -0.5 exactly would make "
         "the surrogate raise a ValueError, which the driver turns into an ImpactError; not "
@@ -755,10 +755,10 @@ DISCUSSION: dict[str, str] = {
     "refined-4x":
         "4208 cells; dt is 4.4 x smaller than the base's at the start (8.27e-8 against "
         "3.638e-7 s) and the run takes 5786 steps for 0.3 ms; the energy error is at the "
-        "coarse mesh's level. The most expensive case (50 s CPU); no damage by 0.3 ms. Clean.",
+        "coarse mesh's level. The most steps per simulated time (5786 for 0.3 ms, 31 s CPU); no damage by 0.3 ms. Clean.",
     "beyond-table":
         "With damage off nothing breaks, so at 300 m/s the yarns are stretched past the "
-        "table's upper end: 2622689 point evaluations beyond it. The lookup clips at the end, "
+        "table's upper end: 2622688 point evaluations beyond it. The lookup clips at the end, "
         "a constant stress with no stiffness beyond it, which the unit cell does not have "
         "(its yarns would have failed). The run is numerically sound (0.041 % energy error, "
         "all finite), and the fabric, holding that stress, throws the projectile back at "
@@ -766,7 +766,7 @@ DISCUSSION: dict[str, str] = {
         "evaluations beyond the table and the largest strains, and the summary's surrogate "
         "range reports the strains seen.",
     "large-damage":
-        "A 100 mm projectile at 300 m/s: damage from 0.011 ms and cells removed over a wide "
+        "A 100 mm projectile at 300 m/s: damage from 0.010 ms and cells removed over a wide "
         "zone, mostly by erosion (a yarn Green strain above material.erosion_strain = 1.0) "
         "rather than by deletion (both yarns broken at all four points). The removal cuts out "
         "a plug of several hundred cells that rides on with the projectile (the paragraph "
@@ -843,11 +843,10 @@ def write_report(doc: Path, out: Path, records: list[dict], cases, command: str,
                    table_rows(records)),
         "",
         f"Total over the {len(records)} cases: {total_wall:.0f} s wall, {total_cpu:.0f} s CPU "
-        "(as recorded when each case ran; two other studies shared the two cores). The "
-        "fabric variants' surrogate tiles had been solved by an earlier run of the study and "
-        "were read from the cache (~/.cache/fabric_fenicsx); with an empty cache, bending-x10, "
-        "bending-div10 and crimp-0 each take about 70 s CPU more, stretch-x10 and crimp-10 "
-        "6-7 s more (measured in those first runs).",
+        "(as recorded when each case ran; another study shared the two cores). They include "
+        "the table tiles a case had to solve (the fabric variants: each case's paragraph gives "
+        "the unit cells solved and their time); tiles already in the cache (~/.cache/fabric_fenicsx) "
+        "are only read from disk (under a second in benchmarks/bench_impact.py).",
         "",
     ]
     for p in plots:
