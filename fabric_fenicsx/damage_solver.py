@@ -1,4 +1,4 @@
-"""The damage coupling of the unit cell (appendix A.1), solved per yarn and per point.
+"""The damage coupling of the unit cell (appendix A.1), solved per point.
 
 alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (Eq. 2-25/A.12) is a fixed point of
 target(alpha). With g(alpha) = alpha - target(alpha) >= 0 at alpha^hist, the loading path
@@ -10,18 +10,29 @@ target is non-decreasing in alpha (a weaker yarn stretches more), so from an upp
 never skips it. It is accelerated by the thesis's secant step where the secant slope shows a
 contraction (target' < 0.95); a step that overshoots (g < 0) brackets a root, which the
 Illinois variant of regula falsi closes. Where the fixed-point steps creep (target' near 1
-over a long stretch: a snap), the remaining points scan g on a grid below u and close the
-highest sign change. Vectorised over points; the yarns' coupling enters through target.
+over a long stretch: a snap), the yarn scans g on a grid below u and closes the highest sign
+change. The yarns' coupling enters through target.
+
+The iteration is scalar code for one point (:func:`solve_point`), written so that numba can
+compile it unchanged: :mod:`fabric_fenicsx.damage_kernel` compiles it with the surrogate's
+target for the membrane's quadrature points; the unit cell (:func:`solve_damage`) runs the
+same code in Python around its own solves. The point's target comes from :func:`target`.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
 
 Evaluate = Callable[[np.ndarray, np.ndarray], np.ndarray]
 """evaluate(rows, alpha) -> target for those rows: alpha and target of shape (len(rows), 2)."""
+
+CONVERGED, UNCONVERGED = 0, 1
+"""Status of :func:`solve_point`."""
+FAST_ITERATIONS, SCAN_POINTS, MAX_ROUNDS, ACCEPT = 40, 32, 4, 1e-7
+"""The iteration's defaults (see :func:`solve_damage`)."""
 
 
 class DamageIterationError(RuntimeError):
@@ -34,9 +45,12 @@ class DamageIterationError(RuntimeError):
 
 
 def solve_damage(alpha_hist: np.ndarray, target_hist: np.ndarray, evaluate: Evaluate,
-                 floor: float, tol: float = 1e-10, fast_iterations: int = 40,
-                 scan_points: int = 32, max_rounds: int = 4, accept: float = 1e-7) -> np.ndarray:
-    """The new integrities alpha (n, 2), given alpha^hist (n, 2) and target(alpha^hist).
+                 floor: float, tol: float = 1e-10, fast_iterations: int = FAST_ITERATIONS,
+                 scan_points: int = SCAN_POINTS, max_rounds: int = MAX_ROUNDS,
+                 accept: float = ACCEPT) -> np.ndarray:
+    """The new integrities alpha (n, 2), given alpha^hist (n, 2) and target(alpha^hist), with
+    ``evaluate(rows, alpha)`` giving the targets of several points at once; :func:`solve_point`
+    per point (for few points with costly targets: the unit cell's).
 
     ``floor``: the smallest integrity the caller still treats as a yarn in the cell; a root
     below it is returned as 0 (broken). The iteration aims at |alpha - target(alpha)| <= tol;
@@ -46,154 +60,193 @@ def solve_damage(alpha_hist: np.ndarray, target_hist: np.ndarray, evaluate: Eval
     singular, e.g. a yarn within 2e-5 in stretch of complete failure, r -> 0). Otherwise
     raises :class:`DamageIterationError` naming the first unconverged point.
     """
-    alpha = alpha_hist.copy()
-    g = alpha_hist - target_hist
-    todo = np.flatnonzero(np.any(np.abs(g) > tol, axis=1))
-    for _ in range(max_rounds):
-        if todo.size == 0:
-            return alpha
-        alpha[todo] = _fast(alpha_hist[todo], alpha[todo], lambda r, a: evaluate(todo[r], a),
-                            floor, tol, fast_iterations)
-        g = alpha[todo] - _target(evaluate, todo, alpha[todo])
-        todo = todo[np.any((np.abs(g) > tol) & (alpha[todo] > 0), axis=1)]
-        for i in (0, 1):
-            if todo.size == 0:
-                break
-            # only the yarns still off their root: a converged yarn (often one below its
-            # critical stretch, target = its history) must not be moved by a scan
-            g = alpha[todo] - _target(evaluate, todo, alpha[todo])
-            rows = todo[np.abs(g[:, i]) > tol]
-            if rows.size:
-                alpha[rows] = _scan(alpha_hist[rows], alpha[rows], i,
-                                    lambda r, a, rows=rows: evaluate(rows[r], a), floor, tol, scan_points)
-        if todo.size:
-            g = alpha[todo] - _target(evaluate, todo, alpha[todo])
-            todo = todo[np.any((np.abs(g) > tol) & (alpha[todo] > 0), axis=1)]
-    if todo.size == 0:
-        return alpha
-    g = alpha[todo] - _target(evaluate, todo, alpha[todo])
-    unconverged = np.any(np.abs(g) > accept, axis=1)
-    todo, g = todo[unconverged], g[unconverged]
-    if todo.size == 0:
-        return alpha
-    k = todo[0]
-    raise DamageIterationError(
-        f"damage iteration did not converge for {todo.size} point(s); first: point {k}, "
+    alpha_hist = np.asarray(alpha_hist, dtype=float)
+    target_hist = np.asarray(target_hist, dtype=float)
+    alpha = np.empty_like(alpha_hist)
+    residual = np.empty(2)
+    failed = []
+    for k in range(alpha_hist.shape[0]):
+        status = solve_point((_row_target, (evaluate, k)), alpha_hist[k], target_hist[k], floor, tol,
+                             fast_iterations, scan_points, max_rounds, accept, alpha[k], residual)
+        if status != CONVERGED:
+            failed.append((k, residual.copy()))
+    if failed:
+        raise iteration_error(np.array([k for k, _ in failed]), alpha_hist, alpha,
+                              np.array([g for _, g in failed]))
+    return alpha
+
+
+def iteration_error(rows, alpha_hist, alpha, residual) -> DamageIterationError:
+    """The error for the unconverged ``rows`` (residual: alpha - target there)."""
+    k = rows[0]
+    return DamageIterationError(
+        f"damage iteration did not converge for {rows.size} point(s); first: point {k}, "
         f"alpha_hist={tuple(alpha_hist[k])}, last alpha={tuple(alpha[k])}, "
-        f"alpha - target(alpha) = {tuple(g[0])}", rows=todo, alpha=alpha[todo], residual=g)
+        f"alpha - target(alpha) = {tuple(residual[0])}", rows=rows, alpha=alpha[rows],
+        residual=residual)
 
 
-def _target(evaluate: Evaluate, rows: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    return evaluate(rows, alpha)
+def target(ctx, a1, a2):
+    """The point's target at (alpha1, alpha2): ``ctx`` = (evaluate, data), evaluate(data, a1, a2)
+    -> (target1, target2). The compiled twins (:mod:`damage_kernel`) bind this name to the
+    surrogate's compiled target instead (numba caches no code that takes functions as
+    arguments)."""
+    evaluate, data = ctx
+    return evaluate(data, a1, a2)
 
 
-def _fast(hist, alpha, evaluate, floor, tol, iterations):
+def _row_target(data, a1, a2):
+    evaluate, k = data
+    t = evaluate(np.array([k]), np.array([[a1, a2]]))[0]
+    return t[0], t[1]
+
+
+# --------------------------------------------------------------------------- one point
+def solve_point(ctx, hist, target_hist, floor, tol, fast_iterations, scan_points,
+                max_rounds, accept, alpha, residual):
+    """The new integrities of one point into ``alpha`` (2,), from ``hist`` = alpha^hist and
+    ``target_hist`` = target(alpha^hist). Returns CONVERGED, or UNCONVERGED with
+    alpha - target(alpha) in ``residual`` (2,); see :func:`solve_damage` for the arguments."""
+    alpha[0], alpha[1] = hist[0], hist[1]
+    if abs(hist[0] - target_hist[0]) <= tol and abs(hist[1] - target_hist[1]) <= tol:
+        return CONVERGED
+    g = np.empty(2)
+    for _ in range(max_rounds):
+        _fast(ctx, hist, alpha, floor, tol, fast_iterations)
+        if _settled(ctx, alpha, tol, g):
+            return CONVERGED
+        for i in range(2):
+            _residual(ctx, alpha, g)
+            if abs(g[i]) > tol:
+                _scan(ctx, alpha, i, floor, tol, scan_points)
+        if _settled(ctx, alpha, tol, g):
+            return CONVERGED
+    _residual(ctx, alpha, g)
+    residual[0], residual[1] = g[0], g[1]
+    if abs(g[0]) > accept or abs(g[1]) > accept:
+        return UNCONVERGED
+    return CONVERGED
+
+
+def _residual(ctx, alpha, g):
+    t1, t2 = target(ctx, alpha[0], alpha[1])
+    g[0], g[1] = alpha[0] - t1, alpha[1] - t2
+
+
+def _settled(ctx, alpha, tol, g):
+    """Both yarns at a root (to tol) or broken."""
+    _residual(ctx, alpha, g)
+    return ((abs(g[0]) <= tol or alpha[0] <= 0.0) and (abs(g[1]) <= tol or alpha[1] <= 0.0))
+
+
+def _fast(ctx, hist, alpha, floor, tol, iterations):
     """Fixed-point steps with contracting secant acceleration and bracket closing, from
-    alpha (an upper bound of the path's root, g >= 0, or a converged value)."""
-    n = hist.shape[0]
-    rows = np.arange(n)
+    alpha (an upper bound of the path's root, g >= 0, or a converged value), in place."""
+    nan = math.nan
     u = alpha.copy()
-    gu = u - evaluate(rows, u)
-    prev_u = np.full_like(u, np.nan)
-    prev_gu = np.full_like(u, np.nan)
-    lo = np.full_like(u, np.nan)
-    glo = np.full_like(u, np.nan)
-    side = np.zeros(u.shape, dtype=np.int8)
+    gu = np.empty(2)
+    _residual(ctx, u, gu)
+    prev_u = np.full(2, nan)
+    prev_gu = np.full(2, nan)
+    lo = np.full(2, nan)
+    glo = np.full(2, nan)
+    side = np.zeros(2, np.int64)
     x = u.copy()
-    done = (np.abs(gu) <= tol) | (u == 0.0)
-    reopened = np.zeros_like(done)
+    g = np.empty(2)
+    done = np.empty(2, np.bool_)
+    for k in range(2):
+        done[k] = abs(gu[k]) <= tol or u[k] == 0.0
     for _ in range(iterations):
-        if done.all():
+        if done[0] and done[1]:
             break
-        with np.errstate(divide="ignore", invalid="ignore"):
-            slope = (prev_gu - gu) / (prev_u - u)  # = 1 - target'
-            secant = u - gu / slope
-            falsi = (lo * gu - u * glo) / (gu - glo)
-        contracting = np.isfinite(secant) & (slope >= 0.05) & (slope <= 1.0)
-        descend = np.maximum(np.where(contracting, secant, u - gu), floor)
-        inside = np.isfinite(falsi) & (falsi > lo) & (falsi < u)
-        closing = np.where(inside, falsi, 0.5 * (lo + u))
-        x = np.where(done, x, np.where(np.isnan(lo), descend, closing))
-        active_rows = np.flatnonzero(~done.all(axis=1))
-        g = np.zeros_like(x)
-        g[active_rows] = x[active_rows] - evaluate(active_rows, x[active_rows])
-        # A yarn converged while the other yarn of its point moved on: re-bracket it.
-        row_active = np.zeros_like(done)
-        row_active[active_rows] = True
-        stale = done & row_active & (np.abs(g) > tol) & (x > 0.0)
-        if stale.any():
-            high, low = stale & (g > 0), stale & (g < 0)
-            u = np.where(high, x, np.where(low, hist, u))
-            gu = np.where(high, g, np.where(low, np.nan, gu))
-            lo = np.where(low, x, np.where(high, np.nan, lo))
-            glo = np.where(low, g, np.where(high, np.nan, glo))
-            prev_u = np.where(stale, np.nan, prev_u)
-            prev_gu = np.where(stale, np.nan, prev_gu)
-            side = np.where(stale, 0, side).astype(np.int8)
-            done = done & ~stale
-            reopened |= stale
-        active = ~done & row_active
-        conv = active & ((np.abs(g) <= tol) | (~np.isnan(lo) & (u - lo <= tol)))
-        above = active & ~conv & (g > 0)
-        below = active & ~conv & (g <= 0)
-        glo = np.where(above & (side == 1), 0.5 * glo, glo)  # Illinois
-        gu = np.where(below & (side == -1), 0.5 * gu, gu)
-        prev_u = np.where(above, u, prev_u)
-        prev_gu = np.where(above, gu, prev_gu)
-        u = np.where(above, x, u)
-        gu = np.where(above, g, gu)
-        lo = np.where(below, x, lo)
-        glo = np.where(below, g, glo)
-        side = np.where(above, 1, np.where(below, -1, side)).astype(np.int8)
-        broken = above & (x <= floor)  # still above the root at the floor: broken yarn
-        x = np.where(broken, 0.0, x)
-        done = done | conv | broken
-    # Unconverged entries return their upper bound (still >= the path's root).
-    return np.where(done, x, u)
+        for k in range(2):
+            if done[k]:
+                continue
+            if math.isnan(lo[k]):
+                d = u[k] - gu[k]
+                if prev_u[k] != u[k] and not math.isnan(prev_u[k]):
+                    slope = (prev_gu[k] - gu[k]) / (prev_u[k] - u[k])  # = 1 - target'
+                    if 0.05 <= slope <= 1.0:
+                        secant = u[k] - gu[k] / slope
+                        if math.isfinite(secant):
+                            d = secant
+                x[k] = d if not d < floor else floor
+            else:
+                x[k] = _falsi_or_bisect(lo[k], glo[k], u[k], gu[k])
+        _residual(ctx, x, g)
+        for k in range(2):
+            if done[k]:
+                if abs(g[k]) <= tol or x[k] <= 0.0:
+                    continue
+                # converged while the other yarn moved on: re-bracket it, then go on with it
+                prev_u[k], prev_gu[k], side[k], done[k] = nan, nan, 0, False
+                if g[k] > 0:
+                    u[k], gu[k], lo[k], glo[k] = x[k], g[k], nan, nan
+                else:
+                    u[k], gu[k], lo[k], glo[k] = hist[k], nan, x[k], g[k]
+            if abs(g[k]) <= tol or (not math.isnan(lo[k]) and u[k] - lo[k] <= tol):
+                done[k] = True
+            elif g[k] > 0:
+                if side[k] == 1:
+                    glo[k] *= 0.5  # Illinois
+                prev_u[k], prev_gu[k] = u[k], gu[k]
+                u[k], gu[k], side[k] = x[k], g[k], 1
+                if x[k] <= floor:  # still above the root at the floor: broken yarn
+                    x[k], done[k] = 0.0, True
+            else:
+                if side[k] == -1:
+                    gu[k] *= 0.5
+                lo[k], glo[k], side[k] = x[k], g[k], -1
+    for k in range(2):
+        alpha[k] = x[k] if done[k] else u[k]  # unconverged: the upper bound (>= the root)
 
 
-def _scan(hist, alpha, i, evaluate, floor, tol, k):
-    """Yarn i of each point: g on k grid points below its upper bound, then regula falsi in
-    the highest interval where g changes sign (the other yarn held)."""
-    n = hist.shape[0]
-    u = alpha[:, i].copy()
-    frac = np.linspace(0.0, 1.0, k + 1)[1:-1]
-    grid = np.maximum(u[:, None] * frac[None, :], floor)  # (n, k-1), ascending
-    rows = np.repeat(np.arange(n), frac.size)
-    trial = np.repeat(alpha, frac.size, axis=0)
-    trial[:, i] = grid.ravel()
-    g = (trial[:, i] - evaluate(rows, trial)[:, i]).reshape(n, frac.size)
-    nonpos = g <= 0
-    has = nonpos.any(axis=1)
-    top = np.where(has, frac.size - 1 - np.argmax(nonpos[:, ::-1], axis=1), 0)
-    lo = np.where(has, grid[np.arange(n), top], 0.0)
-    glo = np.where(has, g[np.arange(n), top], -1.0)
-    hi = np.where(has & (top + 1 < frac.size), grid[np.arange(n), np.minimum(top + 1, frac.size - 1)], u)
-    hi = np.where(has, hi, grid[:, 0])
-    ghi = np.full(n, np.nan)
+def _falsi_or_bisect(lo, glo, hi, ghi):
+    """Regula falsi in [lo, hi] where it falls inside, else the midpoint."""
+    if ghi != glo:
+        falsi = (lo * ghi - hi * glo) / (ghi - glo)
+        if math.isfinite(falsi) and lo < falsi < hi:
+            return falsi
+    return 0.5 * (lo + hi)
+
+
+def _scan(ctx, alpha, i, floor, tol, k):
+    """Yarn i: g on k - 1 grid points below its upper bound alpha[i], then regula falsi in
+    the highest interval where g changes sign (the other yarn held), in place."""
+    u = alpha[i]
+    trial = alpha.copy()
+    g = np.empty(2)
+    has, lo, glo, hi = False, 0.0, -1.0, u
+    first = max(u / k, floor)
+    for j in range(k - 1, 0, -1):  # from the top: the highest sign change
+        trial[i] = max(u * (j / k), floor)
+        _residual(ctx, trial, g)
+        if g[i] <= 0:
+            has, lo, glo = True, trial[i], g[i]
+            break
+        hi = trial[i]
+    if not has:
+        lo, hi = 0.0, first
+    ghi = math.nan
     x = 0.5 * (lo + hi)
-    out = alpha.copy()
-    done = np.zeros(n, bool)
-    side = np.zeros(n, np.int8)
+    side = 0
     for _ in range(80):
-        trial = alpha.copy()
-        trial[:, i] = x
-        gx = x - evaluate(np.arange(n), trial)[:, i]
-        conv = ~done & ((np.abs(gx) <= tol) | (hi - lo <= tol))
-        broken = ~done & ~has & (hi <= 2 * floor) & (gx > 0)
-        out[:, i] = np.where(conv, x, np.where(broken, 0.0, out[:, i]))
-        done |= conv | broken
-        if done.all():
-            break
-        above, below = ~done & (gx > 0), ~done & (gx <= 0)
-        glo = np.where(above & (side == 1), 0.5 * glo, glo)
-        ghi = np.where(below & (side == -1), 0.5 * ghi, ghi)
-        hi, ghi = np.where(above, x, hi), np.where(above, gx, ghi)
-        lo, glo = np.where(below, x, lo), np.where(below, gx, glo)
-        side = np.where(above, 1, np.where(below, -1, side)).astype(np.int8)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            falsi = (lo * ghi - hi * glo) / (ghi - glo)
-        ok = np.isfinite(falsi) & (falsi > lo) & (falsi < hi)
-        x = np.where(ok, falsi, 0.5 * (lo + hi))
-    out[:, i] = np.where(done, out[:, i], x)
-    return out
+        trial[i] = x
+        _residual(ctx, trial, g)
+        gx = g[i]
+        if abs(gx) <= tol or hi - lo <= tol:
+            alpha[i] = x
+            return
+        if not has and hi <= 2 * floor and gx > 0:
+            alpha[i] = 0.0
+            return
+        if gx > 0:
+            if side == 1:
+                glo *= 0.5
+            hi, ghi, side = x, gx, 1
+        else:
+            if side == -1:
+                ghi *= 0.5
+            lo, glo, side = x, gx, -1
+        x = _falsi_or_bisect(lo, glo, hi, ghi)
+    alpha[i] = x

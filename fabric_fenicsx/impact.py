@@ -90,6 +90,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fabric_fenicsx import yarn_stress_kernel
 from fabric_fenicsx.fem.explicit import CentralDifference
 from fabric_fenicsx.fem.membrane import Membrane
 from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, edge_dofs, load_mesh,
@@ -122,6 +123,10 @@ yarn's modulus: over the default table (401 x 401 strain states at alpha 1, 0.5,
 largest eigenvalue of the interpolated tangent is 1.028 of it at every state the membrane can
 reach, except on the jumps of the unit cell's compressive branch (10.4 x at alpha1 = 0.01,
 E2 = -0.054), where the slope is that of the interpolant across a jump, not a wave speed."""
+
+
+_PATH_S, _PATH_W = np.polynomial.legendre.leggauss(6)
+_PATH_S, _PATH_W = 0.5 * (_PATH_S + 1.0), 0.5 * _PATH_W  # on [0, 1]: YarnStress.path_energy
 
 
 class ImpactError(RuntimeError):
@@ -204,8 +209,9 @@ class YarnStress:
         """Masks of the yarns that cannot carry tension (wrinkled, P_i = 0): compressed below
         the table's lower end, or compressed while the other yarn is not stretched (only a
         stretched crossing yarn keeps a compressed one taut, by crimp interchange)."""
-        return ((E1 < self.E_lo) | ((E1 < 0) & (E2 <= 0)),
-                (E2 < self.E_lo) | ((E2 < 0) & (E1 <= 0)))
+        slack1, slack2 = np.empty(E1.size, bool), np.empty(E1.size, bool)
+        yarn_stress_kernel.slack(E1, E2, self.E_lo, slack1, slack2)
+        return slack1, slack2
 
     def _frozen_P(self, E1, E2, a1, a2):
         """P1, P2 at frozen damage with the slack rule of :meth:`update`."""
@@ -225,8 +231,7 @@ class YarnStress:
         stays the energy of the stresses the membrane actually uses."""
         if E1.size == 0:
             return np.zeros(0)
-        s, w = np.polynomial.legendre.leggauss(6)
-        s, w = 0.5 * (s + 1.0), 0.5 * w
+        s, w = _PATH_S, _PATH_W
         n = E1.size
         S = np.repeat(s, n)
         e1, e2 = np.tile(E1, s.size) * S, np.tile(E2, s.size) * S
@@ -242,43 +247,40 @@ class YarnStress:
         n = self.w.size
         idx = self._idx
         sel = self._sel   # the live points: a slice while none was removed (no gathers)
-        a1, a2 = np.array(alpha1_hist, dtype=float), np.array(alpha2_hist, dtype=float)
-        P_el = np.zeros((2, n))
+        a1h, a2h = np.asarray(alpha1_hist, dtype=float), np.asarray(alpha2_hist, dtype=float)
         e1, e2 = E1[sel], E2[sel]
-        changed = None
+        changed = np.zeros(0, np.int64)
         if self.damage:
-            p1, p2, b1, b2 = self.sur.update(e1, e2, a1[sel], a2[sel])
-            changed = np.flatnonzero((b1 != a1[sel]) | (b2 != a2[sel]))
+            p1, p2, b1, b2 = self.sur.update(e1, e2, a1h[sel], a2h[sel])
+            a1, a2, changed = np.empty(n), np.empty(n), np.empty(b1.size, np.int64)
+            changed = changed[:yarn_stress_kernel.new_damage(a1h, a2h, self.live, b1, b2, a1, a2,
+                                                             changed)]
             if changed.size:
                 c = idx[changed]
-                released = (self.path_energy(e1[changed], e2[changed], a1[c], a2[c])
-                            - self.path_energy(e1[changed], e2[changed], b1[changed], b2[changed]))
-                self.damage_dissipation += float(self.w[c] @ released)
-            a1[sel], a2[sel] = b1, b2
+                psi = self.path_energy(np.tile(e1[changed], 2), np.tile(e2[changed], 2),
+                                       np.concatenate((a1h[c], b1[changed])),
+                                       np.concatenate((a2h[c], b2[changed])))  # before, after
+                self.damage_dissipation += float(self.w[c] @ (psi[:c.size] - psi[c.size:]))
         else:
+            a1, a2 = a1h.copy(), a2h.copy()
             p1, p2 = self._intact(e1, e2)
         # Wrinkled yarns carry nothing (see `slack` and the module docstring): below the
         # table a lookup at its end would freeze a positive crimp-interchange tension and pull
         # the cell together without bound; in biaxial compression the unit cell's branch has
         # jumps whose interpolant leaves small spurious tensions with huge slopes.
-        slack1, slack2 = self.slack(e1, e2)
-        self.below_table += int(np.count_nonzero((e1 < self.E_lo) | (e2 < self.E_lo)))
-        self.slack_tension += int(np.count_nonzero((slack1 & (p1 > 0)) | (slack2 & (p2 > 0))))
-        P_el[0, sel] = np.where(slack1, 0.0, p1)
-        P_el[1, sel] = np.where(slack2, 0.0, p2)
-
-        lam = np.sqrt(1.0 + 2.0 * np.stack((E1, E2)))
-        P_v = np.zeros((2, n))
-        if self.beta > 0.0 and self.dt_prev > 0.0 and idx.size:
-            ref = self.P_el[:, sel].copy()  # P(E^{n-1}, alpha^{n-1})
-            if changed is not None and changed.size:
-                c = idx[changed]
-                ref[:, changed] = self._frozen_P(self.E1[c], self.E2[c], a1[c], a2[c])
-            visc = (self.beta / self.dt_prev) * (P_el[:, sel] - ref)
-            # tension-only for the total stress: a slackening yarn is not pushed
-            P_v[:, sel] = np.maximum(P_el[:, sel] + visc, 0.0) - P_el[:, sel]
-        dlam = lam - self.lam
-        self.viscous_dissipation += float(np.sum(self.w * (0.5 * (P_v + self.P_v) * dlam).sum(axis=0)))
+        beta_over_dt = self.beta / self.dt_prev if self.beta > 0.0 and self.dt_prev > 0.0 else 0.0
+        ref = self.P_el[:, sel]  # P(E^{n-1}, alpha^{n-1}); at the points whose alpha changed:
+        if beta_over_dt and changed.size:
+            c = idx[changed]
+            ref = ref.copy()
+            ref[:, changed] = self._frozen_P(self.E1[c], self.E2[c], a1[c], a2[c])  # alpha^n
+        P_el, P_v, lam = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
+        below, slack_tension, work = yarn_stress_kernel.stresses(
+            E1, E2, self.live, p1, p2, ref, self.E_lo, beta_over_dt, self.w, self.lam, self.P_v,
+            P_el, P_v, lam)
+        self.below_table += below
+        self.slack_tension += slack_tension
+        self.viscous_dissipation += work
         self.E1_prev, self.E2_prev = self.E1, self.E2
         self.E1, self.E2 = E1.copy(), E2.copy()
         self.lam, self.P_el, self.P_v = lam, P_el, P_v

@@ -1,4 +1,4 @@
-"""The surrogate's hot loops, compiled: evaluate each point's cell polynomial.
+"""The surrogate's look-up, compiled: evaluate each point's cell polynomial.
 
 A table cell's interpolant is the polynomial sum_pq C_pq t1^p t2^q in the cell's local
 coordinates (:func:`fabric_fenicsx.interp.power_matrix`), stored flat, P x P coefficients per
@@ -15,7 +15,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _value(coef, k, P, a, b):
     """sum_pq C_pq a^p b^q of the block at coef[k:]."""
     if P == 4:
@@ -29,123 +29,166 @@ def _value(coef, k, P, a, b):
     return coef[k] + coef[k + 1] * b + a * (coef[k + 2] + coef[k + 3] * b)
 
 
-@njit(cache=True, nogil=True)
-def _slope_a(coef, k, P, a, b):
-    """d/da of :func:`_value`."""
+@njit(cache=True, nogil=True, error_model="numpy")
+def _value_slopes(coef, k, P, a, b):
+    """:func:`_value` and its derivatives d/da, d/db."""
     if P == 4:
         b2 = b * b
         b3 = b2 * b
+        s0 = coef[k] + coef[k + 1] * b + coef[k + 2] * b2 + coef[k + 3] * b3
         s1 = coef[k + 4] + coef[k + 5] * b + coef[k + 6] * b2 + coef[k + 7] * b3
         s2 = coef[k + 8] + coef[k + 9] * b + coef[k + 10] * b2 + coef[k + 11] * b3
         s3 = coef[k + 12] + coef[k + 13] * b + coef[k + 14] * b2 + coef[k + 15] * b3
-        return s1 + a * (2.0 * s2 + 3.0 * a * s3)
-    return coef[k + 2] + coef[k + 3] * b
-
-
-@njit(cache=True, nogil=True)
-def _slope_b(coef, k, P, a, b):
-    """d/db of :func:`_value`."""
-    if P == 4:
-        b2 = b * b
         e0 = coef[k + 1] + 2.0 * coef[k + 2] * b + 3.0 * coef[k + 3] * b2
         e1 = coef[k + 5] + 2.0 * coef[k + 6] * b + 3.0 * coef[k + 7] * b2
         e2 = coef[k + 9] + 2.0 * coef[k + 10] * b + 3.0 * coef[k + 11] * b2
         e3 = coef[k + 13] + 2.0 * coef[k + 14] * b + 3.0 * coef[k + 15] * b2
-        return e0 + a * (e1 + a * (e2 + a * e3))
-    return coef[k + 1] + a * coef[k + 3]
+        return (s0 + a * (s1 + a * (s2 + a * s3)), s1 + a * (2.0 * s2 + 3.0 * a * s3),
+                e0 + a * (e1 + a * (e2 + a * e3)))
+    return (coef[k] + coef[k + 1] * b + a * (coef[k + 2] + coef[k + 3] * b),
+            coef[k + 2] + coef[k + 3] * b, coef[k + 1] + a * coef[k + 3])
 
 
-@njit(cache=True, nogil=True)
-def evaluate(coef, P, rows, t1, t2, rows_next, tr, out, d1, d2, derivative, scale):
-    """Interpolated values at m points into ``out`` (m, nq), and with ``derivative`` their
-    derivatives d/dE1, d/dE2 into ``d1``, ``d2`` (``scale`` = 1/h, h the grid step).
-
-    rows: (m, nq) the row of each point's cell for each quantity asked. With ``tr`` of size
-    m, also rows_next (m, nq): the point's value is (1 - tr) v(rows) + tr v(rows_next)
-    (linear in between two r nodes).
-    """
-    m, nq = rows.shape
-    blend = tr.size == m
-    PP = P * P
-    for n in range(m):
-        a, b = t1[n], t2[n]
-        for c in range(nq):
-            k0 = rows[n, c] * PP
-            v = _value(coef, k0, P, a, b)
-            if derivative:
-                g1 = _slope_a(coef, k0, P, a, b)
-                g2 = _slope_b(coef, k0, P, a, b)
-            if blend:
-                w = tr[n]
-                k1 = rows_next[n, c] * PP
-                v += w * (_value(coef, k1, P, a, b) - v)
-                if derivative:
-                    g1 += w * (_slope_a(coef, k1, P, a, b) - g1)
-                    g2 += w * (_slope_b(coef, k1, P, a, b) - g2)
-            out[n, c] = v
-            if derivative:
-                d1[n, c] = g1 * scale
-                d2[n, c] = g2 * scale
-
-
-@njit(cache=True, nogil=True)
-def lookup(E1, E2, a1, a2, intact, damaged, ready_intact, ready_damaged, safe_intact,
-           safe_damaged, E_lo, h, first, last, nr, nq, quantities, scaled, dead1, dead2,
-           alpha_broken, P, out, flag):
-    """Table values at frozen damage (a1, a2) into ``out`` (m, len(quantities)), with the
-    damage scaling of :meth:`Surrogate.lookup`, and per point ``flag``: 0 = its damage cannot
-    change (its cell's nodes are all below mu_crit), 1 = it may, 2 = a tile its cell needs is
-    not built yet (``out`` not set).
-
-    The arithmetic of :meth:`Surrogate._cells`, :meth:`Surrogate._lookup` (value only) and
-    :meth:`Surrogate._below_damage`, fused. intact, damaged: the flat coefficient tables;
-    ready_*, safe_*: the (nE, nE) cell maps; quantities: their rows (``QUANTITIES`` index);
-    scaled: forces, multiplied by alpha_max; dead1, dead2: the value where alpha1 (alpha2) is
-    0, NaN for none.
-    """
+@njit(cache=True, nogil=True, error_model="numpy")
+def _locate(e1, e2, x1, x2, table):
+    """A point's cell: (layer, k, w, a, b, i, j), layer -1 where a tile it needs is not built,
+    0 intact (r = 1), 1 damaged; k the first row of its quantities (damaged: at the r node
+    below, w the weight of the one above); a, b its local coordinates; i, j its cell."""
+    (intact, damaged, ready_intact, ready_damaged, safe_intact, safe_damaged, E_lo, h, first,
+     last, nr, nq, alpha_broken, P) = table
     nE = ready_intact.shape[0]
-    PP = P * P
-    nc = quantities.size
-    for n in range(E1.size):
-        s = (E1[n] - E_lo) / h
-        i = min(max(int(math.floor(s)), first), last)
-        s2 = (E2[n] - E_lo) / h
-        j = min(max(int(math.floor(s2)), first), last)
-        a, b = s - i, s2 - j
-        x1, x2 = a1[n], a2[n]
-        amax = max(x1, x2)
-        amin = min(x1, x2)
-        r = amin / amax if amax > 0.0 else 1.0
+    s = (e1 - E_lo) / h
+    i = min(max(int(math.floor(s)), first), last)
+    s2 = (e2 - E_lo) / h
+    j = min(max(int(math.floor(s2)), first), last)
+    if x1 == x2:  # both yarns alike (the common case): r = 1, no division
+        r = 1.0
+    else:
+        r = min(x1, x2) / max(x1, x2)
         if r < alpha_broken:
             r = 0.0
-        cell = i * nE + j
-        if r >= 1.0:
-            if not ready_intact[i, j]:
-                flag[n] = 2
-                continue
-            k = cell * nq
-            for c in range(nc):
-                out[n, c] = _value(intact, (k + quantities[c]) * PP, P, a, b)
-        else:
-            if not ready_damaged[i, j]:
-                flag[n] = 2
-                continue
-            rs = math.sqrt(r) * (nr - 1)
-            kr = min(int(rs), nr - 2)
-            w = rs - kr
-            case = 0 if x1 < x2 else 1
-            k = ((case * nE * nE + cell) * nr + kr) * nq
-            for c in range(nc):
-                v = _value(damaged, (k + quantities[c]) * PP, P, a, b)
-                out[n, c] = v + w * (_value(damaged, (k + nq + quantities[c]) * PP, P, a, b) - v)
-        for c in range(nc):
+    cell = i * nE + j
+    if r >= 1.0:
+        return (0 if ready_intact[i, j] else -1), cell * nq, 0.0, s - i, s2 - j, i, j
+    rs = math.sqrt(r) * (nr - 1)
+    kr = min(int(rs), nr - 2)
+    case = 0 if x1 < x2 else 1
+    return ((1 if ready_damaged[i, j] else -1), ((case * nE * nE + cell) * nr + kr) * nq, rs - kr,
+            s - i, s2 - j, i, j)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _risk(x1, x2, i, j, table):
+    """Flag 0: the point's damage cannot change (its cell's nodes all below mu_crit), 1: it may."""
+    safe = table[4] if (x1 >= 1.0 and x2 >= 1.0) else table[5]
+    return 0 if safe[i, j] else 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _dead(x1, x2, c, spec):
+    """The value of quantity c where a yarn is broken (alpha = 0), NaN where none is."""
+    if x2 == 0.0 and not math.isnan(spec[3][c]):
+        return spec[3][c]
+    if x1 == 0.0:
+        return spec[2][c]
+    return math.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lookup(E1, E2, a1, a2, table, spec, out, flag):
+    """Table values at frozen damage (a1, a2) into ``out`` (m, len(quantities)), and per point
+    ``flag``: 0 = its damage cannot change (its cell's nodes are all below mu_crit), 1 = it
+    may, 2 = a tile its cell needs is not built yet (its row is not set).
+
+    table: (intact, damaged, ready_intact, ready_damaged, safe_intact, safe_damaged, E_lo, h,
+    first, last, nr, nq, alpha_broken, P): the flat coefficient tables of the intact and the
+    damaged layer (P x P coefficients per row), the (nE, nE) cell maps, the grid, the cells'
+    index range (the cubic kernel's taps stay on the grid), the r nodes (uniform in sqrt(r),
+    linear in between), quantities per cell, the integrity below which a yarn is broken.
+    spec: (quantities, scaled, dead1, dead2): their rows (``QUANTITIES`` index), whether each
+    is a force (multiplied by alpha_max: the damage scaling of :class:`Surrogate`), and the
+    value where alpha1 (alpha2) is 0, NaN for none.
+    """
+    coefs, nq, P = table[:2], table[11], table[13]
+    quantities, scaled = spec[0], spec[1]
+    PP = P * P
+    for n in range(E1.size):
+        x1, x2 = a1[n], a2[n]
+        layer, k, w, a, b, i, j = _locate(E1[n], E2[n], x1, x2, table)
+        if layer < 0:
+            flag[n] = 2
+            continue
+        coef = coefs[layer]
+        amax = max(x1, x2)
+        for c in range(quantities.size):
+            k0 = (k + quantities[c]) * PP
+            v = _value(coef, k0, P, a, b)
+            if w > 0.0:
+                v += w * (_value(coef, k0 + nq * PP, P, a, b) - v)
             if scaled[c]:
-                out[n, c] = out[n, c] * amax if amax > 0.0 else 0.0
-            if x1 == 0.0 and not math.isnan(dead1[c]):
-                out[n, c] = dead1[c]
-            if x2 == 0.0 and not math.isnan(dead2[c]):
-                out[n, c] = dead2[c]
-        if x1 >= 1.0 and x2 >= 1.0:
-            flag[n] = 0 if safe_intact[i, j] else 1
-        else:
-            flag[n] = 0 if safe_damaged[i, j] else 1
+                v = v * amax if amax > 0.0 else 0.0
+            dead = _dead(x1, x2, c, spec)
+            out[n, c] = v if math.isnan(dead) else dead
+        flag[n] = _risk(x1, x2, i, j, table)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lookup_derivatives(E1, E2, a1, a2, table, spec, out, d1, d2, flag):
+    """:func:`lookup` with the derivatives d/dE1, d/dE2 into ``d1``, ``d2`` (a broken yarn's
+    quantities: 0). Apart from it: the extra arithmetic slows the value loop 2x."""
+    coefs, h, nq, P = table[:2], table[7], table[11], table[13]
+    quantities, scaled = spec[0], spec[1]
+    PP = P * P
+    for n in range(E1.size):
+        x1, x2 = a1[n], a2[n]
+        layer, k, w, a, b, i, j = _locate(E1[n], E2[n], x1, x2, table)
+        if layer < 0:
+            flag[n] = 2
+            continue
+        coef = coefs[layer]
+        amax = max(x1, x2)
+        for c in range(quantities.size):
+            k0 = (k + quantities[c]) * PP
+            v, g1, g2 = _value_slopes(coef, k0, P, a, b)
+            if w > 0.0:
+                v1, h1, h2 = _value_slopes(coef, k0 + nq * PP, P, a, b)
+                v, g1, g2 = v + w * (v1 - v), g1 + w * (h1 - g1), g2 + w * (h2 - g2)
+            factor = 1.0
+            if scaled[c]:
+                factor = amax if amax > 0.0 else 0.0
+            dead = _dead(x1, x2, c, spec)
+            if math.isnan(dead):
+                out[n, c], d1[n, c], d2[n, c] = v * factor, g1 * factor / h, g2 * factor / h
+            else:
+                out[n, c], d1[n, c], d2[n, c] = dead, 0.0, 0.0
+        flag[n] = _risk(x1, x2, i, j, table)
+
+
+@njit(cache=True, nogil=True)
+def prepare_inputs(E1, E2, a1, a2, E_fail, E_lo, E_hi, E, alpha, counts, ranges):
+    """The surrogate's inputs in one pass: E (2, n) = (E1, E2) clipped to the table [E_lo,
+    E_hi]; alpha (2, n) = (a1, a2), 0 where E_i > E_fail[i] (the yarn certainly broken).
+    Adds to ``counts`` the points beyond failure (warp, fill), compressed below the table
+    (warp, fill) and invalid (a non-finite value, E <= -0.5 or alpha outside [0, 1]); writes
+    the strain range seen, ``ranges`` (2, 2) = ((E1 min, E2 min), (E1 max, E2 max)).
+    """
+    lo1 = lo2 = math.inf
+    hi1 = hi2 = -math.inf
+    for n in range(E1.size):
+        e = (E1[n], E2[n])
+        x = (a1[n], a2[n])
+        if not (e[0] > -0.5 and e[1] > -0.5 and 0.0 <= x[0] <= 1.0 and 0.0 <= x[1] <= 1.0
+                and e[0] < math.inf and e[1] < math.inf):
+            counts[4] += 1
+            continue
+        lo1, hi1 = min(lo1, e[0]), max(hi1, e[0])
+        lo2, hi2 = min(lo2, e[1]), max(hi2, e[1])
+        for i in range(2):
+            alpha[i, n] = x[i]
+            if e[i] > E_fail[i]:
+                counts[i] += 1
+                alpha[i, n] = 0.0
+            if e[i] < E_lo:
+                counts[2 + i] += 1
+            E[i, n] = min(max(e[i], E_lo), E_hi)
+    ranges[0, 0], ranges[0, 1], ranges[1, 0], ranges[1, 1] = lo1, lo2, hi1, hi2

@@ -22,8 +22,9 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
 
-MODEL_MODULES = ("materials.py", "fibril.py", "unitcell.py", "damage_solver.py", "interp.py",
-                 "interp_kernel.py", "tiles.py", "surrogate.py", "scene.py", "impact.py", "fem/*.py")
+MODEL_MODULES = ("materials.py", "fibril.py", "unitcell.py", "damage_solver.py", "damage_kernel.py",
+                 "interp.py", "interp_kernel.py", "tiles.py", "surrogate.py", "scene.py", "impact.py",
+                 "yarn_stress_kernel.py", "fem/*.py")
 """The package's modules (globs relative to it) whose source determines an impact run's numbers."""
 
 

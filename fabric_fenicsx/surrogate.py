@@ -29,11 +29,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from fabric_fenicsx import interp, interp_kernel
+from fabric_fenicsx import damage_kernel, interp, interp_kernel
 from fabric_fenicsx.materials import Fabric
 from fabric_fenicsx.tiles import (QUANTITIES, Progress, cache_key, default_cache_dir, load_tile,
                                   save_tile, solve_blocks)
-from fabric_fenicsx.damage_solver import DamageIterationError, solve_damage
+from fabric_fenicsx.damage_solver import CONVERGED, iteration_error
 from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell
 
 _Q = {name: k for k, name in enumerate(QUANTITIES)}
@@ -41,7 +41,6 @@ WARP_WEAKER, FILL_WEAKER = 0, 1
 MU_MARGIN = 2e-3
 """Stretch margin below mu_crit under which a table cell cannot start damage: the cubic
 interpolant overshoots its nodes by far less (neighbouring nodes differ by ~1e-4 in mu)."""
-_NO_BLEND = np.empty(0)  # interp_kernel.evaluate: no interpolation in r
 R_LIMIT = 1e-4
 
 
@@ -170,7 +169,8 @@ class Surrogate:
                       "damaged": np.zeros((self.n_tiles,) * 2, bool)}
         self._taps = (1, 3) if self.order == 3 else (0, 1)  # cell i's taps: nodes i - 1 .. i + 2
         self._ready = {layer: np.zeros((self.nE, self.nE), bool) for layer in self.built}
-        self._kernel_quantities = {}  # quantities -> interp_kernel.lookup's arguments for them
+        self._kernel_quantities = {}  # quantities -> interp_kernel.lookup's spec of them
+        self._law = damage_kernel.law_arguments(fabric.damage)
         settings = {"resolution": self.h, "r_nodes": self.r_nodes, "E_lo": self.E_lo, "nE": self.nE,
                     "tile": self.tile, "n_elements": self.n_elements, "tol": cell.tol,
                     "alpha_broken": ALPHA_BROKEN, "r_limit": R_LIMIT, "r_spacing": "sqrt"}
@@ -329,57 +329,6 @@ class Surrogate:
         self._ready[layer] = (b[np.ix_(first, first)] & b[np.ix_(first, last)]
                               & b[np.ix_(last, first)] & b[np.ix_(last, last)])
 
-    # ------------------------------------------------------------------ interpolation
-    def _lookup(self, cells: Cells, r, case, qidx, derivative=False):
-        """Interpolated table values (npts, len(qidx)) at damage-scaled states (r, case);
-        ``r=None``: every point intact (r = 1).
-
-        Points at r = 1 use the 2D intact layer; the others the damaged layer, linear in
-        sqrt(r). Each cell's interpolant is a polynomial in the local coordinates, evaluated
-        from its precomputed coefficients by :func:`interp_kernel.evaluate`.
-        """
-        n = cells.i.size
-        out = np.empty((n, len(qidx)))
-        d1 = np.empty_like(out) if derivative else out
-        d2 = np.empty_like(out) if derivative else out
-        if n == 0:
-            return (out, d1, d2) if derivative else out
-        intact = None if r is None else r >= 1.0
-        if intact is None or intact.all():
-            groups = [("intact", None)]
-        elif not intact.any():
-            groups = [("damaged", None)]
-        else:
-            groups = [("intact", np.flatnonzero(intact)), ("damaged", np.flatnonzero(~intact))]
-        nq, P, nr = len(QUANTITIES), self.order + 1, self.r_nodes
-        q = np.asarray(qidx, dtype=np.int64)
-        for layer, sel in groups:
-            c = cells if sel is None else cells.subset(sel)
-            self._require(layer, c.i, c.j)
-            coef = self._coef[layer].reshape(-1)  # rows of P x P: (cell, r node, quantity)
-            cell = c.i * self.nE + c.j
-            if layer == "intact":
-                rows, tr = (cell * nq)[:, None] + q, _NO_BLEND
-            else:
-                rs = np.sqrt(r if sel is None else r[sel]) * (nr - 1)
-                k = np.minimum(rs.astype(np.int64), nr - 2)
-                tr = rs - k
-                cs = case if sel is None else case[sel]
-                rows = (((cs * self.nE * self.nE + cell) * nr + k) * nq)[:, None] + q
-            if sel is None:
-                o, g1, g2 = out, d1, d2
-            else:
-                o = np.empty((sel.size, len(qidx)))
-                g1 = np.empty_like(o) if derivative else o
-                g2 = np.empty_like(o) if derivative else o
-            interp_kernel.evaluate(coef, P, rows, c.t1, c.t2, rows + nq, tr, o, g1, g2, derivative,
-                                   1.0 / self.h)
-            if sel is not None:
-                out[sel] = o
-                if derivative:
-                    d1[sel], d2[sel] = g1, g2
-        return (out, d1, d2) if derivative else out
-
     # ------------------------------------------------------------------ inputs
     def _inputs(self, E1, E2, a1, a2, names=("alpha1", "alpha2")):
         arrays = [np.asarray(x, dtype=float) for x in (E1, E2, a1, a2)]
@@ -388,26 +337,18 @@ class Surrogate:
         E1, E2, a1, a2 = (np.ascontiguousarray(x).ravel() for x in arrays)
         if not E1.size:
             return E1, E2, a1, a2, arrays[0].shape
-        lows, highs = [float(x.min()) for x in (E1, E2, a1, a2)], [float(x.max()) for x in (E1, E2, a1, a2)]
-        if not (all(math.isfinite(x) for x in lows + highs) and min(lows[:2]) > -0.5
-                and min(lows[2:]) >= 0 and max(highs[2:]) <= 1):
+        E, alpha = np.empty((2, E1.size)), np.empty((2, E1.size))
+        counts, ranges = np.zeros(5, np.int64), np.empty((2, 2))
+        lo, hi = self.E_table
+        interp_kernel.prepare_inputs(E1, E2, a1, a2, self.E_fail, lo, hi, E, alpha, counts, ranges)
+        if counts[4]:
             self._reject(E1, E2, a1, a2, names)
         st = self.stats
         st.points += E1.size
-        E = [E1, E2]
-        lo, hi = self.E_table
-        alphas = [a1, a2]
-        for i in range(2):
-            st.E_min[i], st.E_max[i] = min(st.E_min[i], lows[i]), max(st.E_max[i], highs[i])
-            if highs[i] > self.E_fail[i]:
-                beyond = E[i] > self.E_fail[i]
-                st.beyond_failure[i] += int(beyond.sum())
-                alphas[i] = np.where(beyond, 0.0, alphas[i])
-            if lows[i] < lo:
-                st.compression[i] += int((E[i] < lo).sum())
-            if lows[i] < lo or highs[i] > hi:
-                E[i] = np.clip(E[i], lo, hi)
-        return E[0], E[1], alphas[0], alphas[1], arrays[0].shape
+        st.E_min, st.E_max = np.minimum(st.E_min, ranges[0]), np.maximum(st.E_max, ranges[1])
+        st.beyond_failure += counts[:2]
+        st.compression += counts[2:4]
+        return E[0], E[1], alpha[0], alpha[1], arrays[0].shape
 
     @staticmethod
     def _reject(E1, E2, a1, a2, names):
@@ -431,33 +372,57 @@ class Surrogate:
         raise ValueError(f"surrogate inputs out of range: E1 in [{E1.min()}, {E1.max()}], "
                          f"E2 in [{E2.min()}, {E2.max()}]")
 
-    def _below_damage(self, cells: Cells, a1, a2) -> np.ndarray:
-        """True where every table node the point's interpolation uses (all r) has both
-        stretches at least MU_MARGIN below mu_crit, so its damage cannot change."""
-        flat = cells.i * self.nE + cells.j
-        safe = self._safe["intact"].ravel()[flat]
-        damaged = (a1 < 1.0) | (a2 < 1.0)
-        if damaged.any():
-            safe[damaged] = self._safe["damaged"].ravel()[flat[damaged]]
-        return safe
-
+    # ------------------------------------------------------------------ interpolation
     def lookup(self, E1, E2, a1, a2, quantities=("P1", "P2", "mu1", "mu2"), derivative=False):
         """Raw table values (npts, len(quantities)) at frozen damage (alpha1, alpha2): forces
         and Psi scaled by alpha_max (damage scaling), signed (not tension-only), with the
         derivatives d/dE1 and d/dE2 when ``derivative``. The hot-path access for solvers:
         1-D float arrays inside ``E_table`` and alphas in [0, 1] are expected and not
         checked (:meth:`evaluate` checks its inputs). Quantities: any of ``QUANTITIES``.
-        Values come from the compiled :func:`interp_kernel.lookup`, derivatives from
-        :meth:`_lookup_numpy` (the same interpolant)."""
-        if derivative:
-            return self._lookup_numpy(E1, E2, a1, a2, quantities, True)
-        return self._values(E1, E2, a1, a2, quantities)[0]
+
+        Points at r = alpha_min / alpha_max = 1 use the 2D intact layer; the others the
+        damaged layer, linear in sqrt(r). Each cell's interpolant is a polynomial in the
+        local coordinates, evaluated from its precomputed coefficients by the compiled
+        :func:`interp_kernel.lookup`; tiles not built yet are solved first."""
+        out, d1, d2, _ = self._lookup(E1, E2, a1, a2, tuple(quantities), derivative)
+        return (out, d1, d2) if derivative else out
 
     def _values(self, E1, E2, a1, a2, quantities):
-        """:meth:`lookup`'s values, compiled, and per point whether its damage may change
-        (True) or not (False: :meth:`_below_damage`)."""
+        """:meth:`lookup`'s values and per point whether its damage may change (True) or not
+        (False: every table node its interpolation uses, all r, has both stretches at least
+        MU_MARGIN below mu_crit)."""
+        out, _, _, flag = self._lookup(E1, E2, a1, a2, tuple(quantities), False)
+        return out, flag.astype(bool)
+
+    def _lookup(self, E1, E2, a1, a2, quantities, derivative):
         E1, E2, a1, a2 = (np.ascontiguousarray(x, dtype=float) for x in (E1, E2, a1, a2))
-        quantities = tuple(quantities)
+        spec = self._spec(quantities)
+        out = np.empty((E1.size, len(quantities)))
+        d1, d2 = (np.empty_like(out), np.empty_like(out)) if derivative else (out, out)
+        flag = np.empty(E1.size, np.int8)
+        if derivative:
+            interp_kernel.lookup_derivatives(E1, E2, a1, a2, self._table(), spec, out, d1, d2, flag)
+        else:
+            interp_kernel.lookup(E1, E2, a1, a2, self._table(), spec, out, flag)
+        missing = np.flatnonzero(flag == 2)
+        if missing.size:
+            sub = [x[missing] for x in (E1, E2, a1, a2)]
+            self._require_points(*sub)
+            parts = self._lookup(*sub, quantities, derivative)
+            for whole, part in zip((out, d1, d2, flag), parts):
+                whole[missing] = part
+        return out, d1, d2, flag
+
+    def _table(self):
+        """The tables and cell maps as :func:`interp_kernel.lookup` takes them."""
+        first, last = self._taps[0], self.nE - 2 - self._taps[0]  # interp.locate's clip
+        return (self._coef["intact"].reshape(-1), self._coef["damaged"].reshape(-1),
+                self._ready["intact"], self._ready["damaged"], self._safe["intact"],
+                self._safe["damaged"], self.E_lo, self.h, first, last, self.r_nodes,
+                len(QUANTITIES), ALPHA_BROKEN, self.order + 1)
+
+    def _spec(self, quantities):
+        """:func:`interp_kernel.lookup`'s description of ``quantities``."""
         spec = self._kernel_quantities.get(quantities)
         if spec is None:
             law = self.fabric.damage
@@ -471,51 +436,16 @@ class Surrogate:
             spec = (np.array([_Q[q] for q in quantities], dtype=np.int64),
                     np.array([not q.startswith("mu") for q in quantities]), dead[0], dead[1])
             self._kernel_quantities[quantities] = spec
-        out = np.empty((E1.size, len(quantities)))
-        flag = np.empty(E1.size, np.int8)
-        first, last = self._taps[0], self.nE - 2 - self._taps[0]  # interp.locate's clip
-        interp_kernel.lookup(
-            E1, E2, a1, a2, self._coef["intact"].reshape(-1), self._coef["damaged"].reshape(-1),
-            self._ready["intact"], self._ready["damaged"], self._safe["intact"], self._safe["damaged"],
-            self.E_lo, self.h, first, last, self.r_nodes, len(QUANTITIES), *spec, ALPHA_BROKEN,
-            self.order + 1, out, flag)
-        missing = np.flatnonzero(flag == 2)
-        if missing.size:  # tiles not built yet: the numpy path builds them
-            sub = [x[missing] for x in (E1, E2, a1, a2)]
-            cells = self._cells(sub[0], sub[1])
-            out[missing] = self._lookup_numpy(*sub, quantities, cells=cells)
-            flag[missing] = ~self._below_damage(cells, sub[2], sub[3])
-        return out, flag.astype(bool)
+        return spec
 
-    def _lookup_numpy(self, E1, E2, a1, a2, quantities, derivative=False, cells: Cells | None = None):
-        """:meth:`lookup` in numpy, with derivatives; builds the tiles it needs."""
-        cells = self._cells(E1, E2) if cells is None else cells
-        qidx = [_Q[q] for q in quantities]
-        amin = np.minimum(a1, a2)
-        if amin.size and amin.min() >= 1.0:  # all intact: no damage scaling
-            return self._lookup(cells, None, None, qidx, derivative)
-        amax = np.maximum(a1, a2)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            r = np.where(amax > 0, amin / amax, 1.0)
-        r[r < ALPHA_BROKEN] = 0.0
-        case = np.where(a1 < a2, WARP_WEAKER, FILL_WEAKER)
-        res = self._lookup(cells, r, case, qidx, derivative)
-        arrays = res if derivative else (res,)
-        forces = [c for c, q in enumerate(quantities) if not q.startswith("mu")]
-        for x in arrays:
-            x[:, forces] *= amax[:, None]  # amax = 0 (both broken): no force
-        # A broken yarn carries nothing (nor stiffness); its stretch is reported as complete failure.
-        for i, a in enumerate((a1, a2)):
-            dead = a == 0
-            if not dead.any():
-                continue
-            if f"P{i + 1}" in quantities:
-                for x in arrays:
-                    x[dead, quantities.index(f"P{i + 1}")] = 0.0
-            if f"mu{i + 1}" in quantities:
-                mu_complete = self.fabric.damage.mu_complete(self.mu_crit[i])
-                arrays[0][dead, quantities.index(f"mu{i + 1}")] = mu_complete
-        return res
+    def _require_points(self, E1, E2, a1, a2) -> None:
+        """Build the tiles the points' look-ups need: the intact layer's, and the damaged
+        layer's where the two yarns' integrities differ."""
+        cells = self._cells(E1, E2)
+        self._require("intact", cells.i, cells.j)
+        damaged = np.flatnonzero(np.minimum(a1, a2) < np.maximum(a1, a2))
+        if damaged.size:
+            self._require("damaged", cells.i[damaged], cells.j[damaged])
 
     # ------------------------------------------------------------------ public API
     def evaluate(self, E1, E2, alpha1, alpha2, tension_only: bool = True):
@@ -532,60 +462,51 @@ class Surrogate:
         """Constitutive update: P1, P2 (N/m) and the new alpha1, alpha2 [, mu1, mu2].
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (Eq. 2-25, appendix A.1) is solved
-        per point by the unit cell's bracketing iteration (:mod:`fabric_fenicsx.damage_solver`),
-        vectorised over the points that need it. Points whose stretch leaves their damage
-        unchanged (mu_i below mu_i^crit, or unloading) take no iteration.
+        per point by the unit cell's bracketing iteration (:mod:`fabric_fenicsx.damage_solver`,
+        compiled by :mod:`fabric_fenicsx.damage_kernel`). Points whose stretch leaves their
+        damage unchanged (mu_i below mu_i^crit, or unloading) take no iteration.
         """
         E1, E2, a1h, a2h, shape = self._inputs(E1, E2, alpha1_hist, alpha2_hist,
                                                 ("alpha1_hist", "alpha2_hist"))
-        alpha = np.stack((a1h, a2h), axis=1)
-        hist = alpha.copy()
-        if return_mu:
-            vals = self.lookup(E1, E2, a1h, a2h)
-            target = self._target(vals, hist)
-            todo = np.flatnonzero(np.any(alpha - target > tol, axis=1))
-        else:
-            # Points in cells whose stretches stay well below mu_crit need no stretch at all:
-            # their target is their history.
-            vals = np.full((E1.size, 4), np.nan)
-            vals[:, :2], risk = self._values(E1, E2, a1h, a2h, ("P1", "P2"))
-            risk = np.flatnonzero(risk)
-            target = hist.copy()
-            if risk.size:
-                vals[risk, 2:] = self.lookup(E1[risk], E2[risk], a1h[risk], a2h[risk], ("mu1", "mu2"))
-                target[risk] = self._target(vals[risk], hist[risk])
-            todo = risk[np.any(hist[risk] - target[risk] > tol, axis=1)]
-        self.last_damaging = todo.size
-        if todo.size:
-            vals[todo], alpha[todo] = self._damage_iteration(E1[todo], E2[todo], hist[todo],
-                                                             target[todo], tol)
-        P1, P2 = vals[:, 0], vals[:, 1]
-        if tension_only:
-            P1, P2 = np.maximum(P1, 0.0), np.maximum(P2, 0.0)
-        out = [P1.reshape(shape), P2.reshape(shape), alpha[:, 0].reshape(shape), alpha[:, 1].reshape(shape)]
-        if return_mu:
-            out += [vals[:, 2].reshape(shape), vals[:, 3].reshape(shape)]
-        return tuple(out)
-
-    def _target(self, vals, hist):
-        law = self.fabric.damage
-        t = np.stack([law.alpha(vals[:, 2 + i], self.mu_crit[i]) for i in range(2)], axis=1)
-        return np.minimum(hist, t)
-
-    def _damage_iteration(self, E1, E2, hist, target, tol):
-        def evaluate(rows, alpha):
-            alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
-            return self._target(self.lookup(E1[rows], E2[rows], alpha[:, 0], alpha[:, 1]), hist[rows])
-
-        try:
-            alpha = solve_damage(hist, target, evaluate, floor=2 * ALPHA_BROKEN, tol=tol)
-        except DamageIterationError as err:
-            k = err.rows[0]
+        P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol)
+        failed = np.flatnonzero(status != CONVERGED)
+        if failed.size:
+            hist = np.stack((a1h, a2h), axis=1)
+            err = iteration_error(failed, hist, alpha, residual[failed])
+            k = failed[0]
             raise SurrogateError(f"surrogate {err}; strains there E1 = {E1[k]!r}, E2 = {E2[k]!r}. "
                                  f"Refine the table (resolution, r_nodes) or loosen the update's "
                                  f"tol.") from err
-        alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
-        return self.lookup(E1, E2, alpha[:, 0], alpha[:, 1]), alpha
+        if tension_only:
+            np.maximum(P, 0.0, out=P)
+        out = [P[:, 0].reshape(shape), P[:, 1].reshape(shape), alpha[:, 0].reshape(shape),
+               alpha[:, 1].reshape(shape)]
+        if return_mu:
+            mu = self.lookup(E1, E2, alpha[:, 0], alpha[:, 1], ("mu1", "mu2"))
+            out += [mu[:, 0].reshape(shape), mu[:, 1].reshape(shape)]
+        return tuple(out)
+
+    def _update_points(self, E1, E2, a1, a2, tol):
+        """:func:`damage_kernel.update` of the points, building the tiles it asks for:
+        (P, alpha, residual, status, number of points that iterated)."""
+        n = E1.size
+        P, alpha = np.empty((n, 2)), np.empty((n, 2))
+        residual, status = np.empty((n, 2)), np.empty(n, np.int8)
+        iterated, waiting = damage_kernel.update(
+            E1, E2, a1, a2, self._table(), self._spec(("P1", "P2")), self._spec(("mu1", "mu2")),
+            self._law, self.mu_crit, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status)
+        if waiting:
+            again = np.flatnonzero(status >= damage_kernel.NEEDS_TILES)
+            lookup = again[status[again] == damage_kernel.NEEDS_TILES]
+            self._require_points(E1[lookup], E2[lookup], a1[lookup], a2[lookup])
+            growing = again[status[again] == damage_kernel.NEEDS_DAMAGED_TILES]
+            cells = self._cells(E1[growing], E2[growing])
+            self._require("damaged", cells.i, cells.j)  # every r (and the intact layer)
+            *parts, more = self._update_points(E1[again], E2[again], a1[again], a2[again], tol)
+            for whole, part in zip((P, alpha, residual, status), parts):
+                whole[again] = part
+            iterated += more
+        return P, alpha, residual, status, iterated
 
     def tangent(self, E1, E2, alpha1, alpha2):
         """dP_i/dlambda_j (N/m) with damage frozen, as arrays (dP1/dl1, dP1/dl2, dP2/dl1, dP2/dl2)."""

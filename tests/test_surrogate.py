@@ -5,6 +5,7 @@ import os
 import numpy as np
 import pytest
 
+from fabric_fenicsx.fibril import BundleDamage, ExponentialDamage
 from fabric_fenicsx.materials import zylon_as
 from fabric_fenicsx.surrogate import Surrogate
 from fabric_fenicsx.unitcell import UnitCell
@@ -172,7 +173,7 @@ def test_skipping_the_stretch_lookup_below_damage_changes_nothing(sur):
     full = sur.update(E1, E2, hist[:, 0], hist[:, 1], return_mu=True)[:4]
     for a, b in zip(fast, full):
         np.testing.assert_array_equal(a, b)
-    assert 0 < sur._below_damage(sur._cells(E1, E2), hist[:, 0], hist[:, 1]).mean() < 1
+    assert 0 < sur._values(E1, E2, hist[:, 0], hist[:, 1], ("P1",))[1].mean() < 1
 
 
 @pytest.mark.parametrize("alpha", [(1.0, 1.0), (0.011, 1.0), (1.0, 1e-4)])
@@ -191,21 +192,69 @@ def test_a_tile_block_does_not_depend_on_the_block_solved_before(alpha):
         np.testing.assert_array_equal(after, fresh)
 
 
-def test_compiled_lookup_matches_the_numpy_lookup(sur):
-    """interp_kernel.lookup repeats _cells + _lookup_numpy + _below_damage in one loop:
-    same values (to round-off of the two summation orders) and the same damage-risk flags,
-    intact, damaged (both cases, every r), broken yarns and both yarns broken."""
-    rng = np.random.default_rng(7)
-    n = 4000
-    E1 = rng.uniform(-0.05, 0.08, n)
-    E2 = rng.uniform(-0.05, 0.06, n)
-    a = rng.choice([1.0, 0.7, 0.3, 0.01, 1e-7, 0.0], size=(n, 2))
+def test_lookup_reproduces_the_table_nodes(sur):
+    """At a grid node the interpolant is the node's value: intact, damaged (both cases, every
+    r node), with the damage scaling (forces x alpha_max) and broken yarns (no force, the
+    stretch of complete failure)."""
+    E = sur.E_lo + sur.h * np.arange(sur.nE)
+    i, j = np.meshgrid(np.arange(2, sur.nE - 3, 3), np.arange(3, sur.nE - 3, 4), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    E1, E2 = E[i], E[j]
     quantities = ("P1", "P2", "mu1", "mu2", "V", "Psi")
-    numpy_vals = sur._lookup_numpy(E1, E2, a[:, 0], a[:, 1], quantities)
-    compiled, risk = sur._values(E1, E2, a[:, 0], a[:, 1], quantities)
-    scale = np.abs(numpy_vals).max(axis=0)
-    np.testing.assert_allclose(compiled, numpy_vals, rtol=0, atol=1e-12 * scale.max())
-    np.testing.assert_array_equal(risk, ~sur._below_damage(sur._cells(E1, E2), a[:, 0], a[:, 1]))
-    assert 0 < risk.mean() < 1
-    dead = a[:, 0] == 0
-    assert np.all(compiled[dead, 0] == 0) and dead.any()
+    force = np.array([not q.startswith("mu") for q in quantities])
+    one = np.ones(i.size)
+    vals, d1, d2 = sur.lookup(E1, E2, one, one, quantities, derivative=True)
+    scale = np.abs(vals).max(axis=0)
+    np.testing.assert_allclose(vals, sur.intact[i, j], rtol=0, atol=1e-12 * scale.max())
+    assert np.all(np.isfinite(d1)) and np.all(np.isfinite(d2))
+    for k, r in enumerate(sur.r_grid[1:-1], start=1):
+        for case, (a1, a2) in enumerate(((0.8 * r, 0.8), (0.8, 0.8 * r))):
+            vals = sur.lookup(E1, E2, a1 * one, a2 * one, quantities)
+            node = sur.damaged[case, i, j, k] * np.where(force, 0.8, 1.0)
+            np.testing.assert_allclose(vals, node, rtol=0, atol=1e-9 * scale.max())
+    mu_complete = sur.fabric.damage.mu_complete(sur.mu_crit[0])
+    vals = sur.lookup(E1, E2, 0.0 * one, 0.6 * one, quantities)
+    assert np.all(vals[:, 0] == 0.0) and np.all(vals[:, 2] == mu_complete)
+    np.testing.assert_allclose(vals[:, 1], 0.6 * sur.damaged[0, i, j, 0, 1], rtol=0,
+                               atol=1e-4 * scale[1])  # r = 0 holds the limit r -> 0+ (R_LIMIT)
+    vals = sur.lookup(E1, E2, 0.0 * one, 0.0 * one, quantities)
+    assert np.all(vals[:, [0, 1, 4, 5]] == 0.0)
+
+
+def test_compiled_damage_iteration_matches_the_solver_run_in_python(sur):
+    """damage_kernel compiles damage_solver's code; run in Python (as the unit cell runs it)
+    with the surrogate's target it gives the same integrities."""
+    from fabric_fenicsx.damage_solver import solve_damage
+    from fabric_fenicsx.unitcell import ALPHA_BROKEN
+    rng = np.random.default_rng(11)
+    n = 400
+    E1 = rng.uniform(0.02, 0.08, n)
+    E2 = rng.uniform(-0.01, 0.06, n)
+    hist = np.where(rng.random((n, 2)) < 0.5, 1.0, rng.uniform(0.05, 1.0, (n, 2)))
+    law = sur.fabric.damage
+
+    def evaluate(rows, alpha):
+        alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
+        mu = sur.lookup(E1[rows], E2[rows], alpha[:, 0], alpha[:, 1], ("mu1", "mu2"))
+        return np.minimum(hist[rows], np.stack([law.alpha(mu[:, i], sur.mu_crit[i])
+                                                for i in range(2)], axis=1))
+
+    target = evaluate(np.arange(n), hist)
+    grows = np.any(hist - target > 1e-10, axis=1)
+    assert grows.sum() > 50
+    compiled = np.stack(sur.update(E1[grows], E2[grows], hist[grows, 0], hist[grows, 1])[2:], axis=1)
+    python = solve_damage(hist[grows], target[grows], lambda rows, a: evaluate(np.flatnonzero(grows)[rows], a),
+                          floor=2 * ALPHA_BROKEN, tol=1e-10)
+    python = np.where(python < ALPHA_BROKEN, 0.0, python)
+    np.testing.assert_allclose(compiled, python, rtol=0, atol=1e-9)
+    assert np.any((compiled > 0) & (compiled < hist[grows]))
+
+
+@pytest.mark.parametrize("law", [ExponentialDamage(), ExponentialDamage(beta=5.0, width=0.05),
+                                 BundleDamage.for_width(0.03, 1.03, n=500, seed=2)])
+def test_compiled_damage_laws_match_the_fibril_module(law):
+    from fabric_fenicsx.damage_kernel import law_alpha, law_arguments
+    mu_crit = 1.03
+    mu = np.concatenate([np.linspace(1.0, 1.07, 701), [mu_crit, law.mu_complete(mu_crit)]])
+    compiled = np.array([law_alpha(m, mu_crit, law_arguments(law)) for m in mu])
+    np.testing.assert_allclose(compiled, law.alpha(mu, mu_crit), rtol=0, atol=1e-14)

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "Projectile",
@@ -95,6 +96,32 @@ def _per_node(name: str, value: Any, n: int) -> np.ndarray:
         bad = int(np.flatnonzero(~(np.isfinite(arr) & (arr > 0.0)))[0])
         raise ValueError(f"{name} must be finite and > 0, got {arr[bad]!r} at node {bad}")
     return arr
+
+
+@njit(cache=True, nogil=True)
+def _gap_and_normal(x, z_face, R, half, fillet, ax, ay, gap, normal):
+    """:meth:`Projectile.gap_and_normal` per point (compiled: it runs at every step)."""
+    for p in range(x.shape[0]):
+        dx, dy = x[p, 0] - ax, x[p, 1] - ay
+        r = math.hypot(dx, dy)
+        hm = x[p, 2] - z_face - half  # height above the mid-plane of the solid
+        front = hm < 0.0
+        rr = fillet if front else 0.0  # only the impacting edge is filleted
+        qx = r - R + rr
+        qy = abs(hm) - half + rr
+        mx, my = max(qx, 0.0), max(qy, 0.0)
+        mlen = math.hypot(mx, my)
+        if mlen > 0.0:  # outside
+            gap[p] = mlen - rr
+            gx, gy = mx / mlen, my / mlen
+        else:
+            gap[p] = max(qx, qy) - rr
+            # inside: nearer the side than the face; ties (to round-off) go to the face
+            side_in = qx > qy + 1e-12 * (R + half)
+            gx, gy = (1.0, 0.0) if side_in else (0.0, 1.0)
+        er_x, er_y = (1.0, 0.0) if r == 0.0 else (dx / r, dy / r)
+        normal[p, 0], normal[p, 1] = gx * er_x, gx * er_y
+        normal[p, 2] = -gy if front else gy
 
 
 @dataclass(frozen=True)
@@ -159,35 +186,10 @@ class Projectile:
         the point is no deeper below the face than inside the side, else the side's radial
         normal; on the axis the radial direction is taken as +x.
         """
-        x = _points("x", x)
-        zf = self._z_face(z_face)
-        R, half = self.radius, 0.5 * self.length
-        dx = x[:, 0] - self.axis_xy[0]
-        dy = x[:, 1] - self.axis_xy[1]
-        r = np.hypot(dx, dy)
-        hm = x[:, 2] - zf - half  # height above the mid-plane of the solid
-        front = hm < 0.0
-        rr = np.where(front, self.fillet, 0.0)  # only the impacting edge is filleted
-        qx = r - R + rr
-        qy = np.abs(hm) - half + rr
-        mx = np.maximum(qx, 0.0)
-        my = np.maximum(qy, 0.0)
-        mlen = np.hypot(mx, my)
-        outside = mlen > 0.0
-        gap = np.where(outside, mlen, np.maximum(qx, qy)) - rr
-
-        safe = np.where(outside, mlen, 1.0)
-        # inside: nearer the side than the face; ties (to round-off) go to the face
-        side_in = qx > qy + 1e-12 * (R + half)
-        gx = np.where(outside, mx / safe, side_in.astype(float))
-        gy = np.where(outside, my / safe, (~side_in).astype(float))
-
-        on_axis = r == 0.0
-        r_safe = np.where(on_axis, 1.0, r)
-        er_x = np.where(on_axis, 1.0, dx / r_safe)
-        er_y = np.where(on_axis, 0.0, dy / r_safe)
-        sz = np.where(front, -1.0, 1.0)
-        normal = np.column_stack((gx * er_x, gx * er_y, gy * sz))
+        x = np.ascontiguousarray(_points("x", x))
+        gap, normal = np.empty(x.shape[0]), np.empty(x.shape)
+        _gap_and_normal(x, self._z_face(z_face), self.radius, 0.5 * self.length, self.fillet,
+                        self.axis_xy[0], self.axis_xy[1], gap, normal)
         return gap, normal
 
     def candidates(self, x: np.ndarray, z_face: float | None = None) -> np.ndarray:
