@@ -55,6 +55,9 @@ def main():
         step_sum += per[key]
         print(f"    {1e3 * per[key]:8.3f}  {label}")
     print(f"    {1e3 * step_sum:8.3f}  total per step ({1 / step_sum:.0f} steps/s)")
+    ours, dolfinx = per["constitutive"] + per["contact"], per["strain"] + per["assembly"]
+    print(f"  target (issue 5): constitutive + contact {1e3 * ours:.3f} ms against strain + assembly "
+          f"(DOLFINx) {1e3 * dolfinx:.3f} ms: ratio {ours / dolfinx:.2f} (target <= 1)")
     print(f"  surrogate tiles solved during the run: {tiles:.1f} s ({s['surrogate']['solves_this_run']} solves)")
     print(f"  run {s['wall_time_s']:.1f} s, set-up {s['build_time_s']:.1f} s, total {total:.1f} s")
     print(f"  result: residual velocity {s['residual_velocity']:.2f} m/s, absorbed {s['absorbed_energy']:.2f} J, "

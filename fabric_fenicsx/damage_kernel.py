@@ -105,11 +105,11 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, floor, tol, P, 
     """The constitutive update of n points: the new alpha (n, 2) from alpha^hist = (a1, a2)
     (Eq. 2-25 / A.12) and P1, P2 there into P (n, 2); per point ``status``: CONVERGED (damage
     unchanged, or its iteration converged), UNCONVERGED (alpha - target in ``residual``; also
-    a non-finite alpha, from a non-finite table stretch),
-    NEEDS_TILES or NEEDS_DAMAGED_TILES (the point is not done). Returns the numbers of points
-    that iterated and that are not done. Only points whose cell can reach mu_crit (interp_kernel.lookup's flag 1)
-    look up their stretches. table: :func:`interp_kernel.lookup`'s; spec_P, spec_mu: its specs
-    of (P1, P2) and (mu1, mu2)."""
+    a non-finite alpha, from a non-finite table stretch), NEEDS_TILES or NEEDS_DAMAGED_TILES
+    (the point is not done). Returns the numbers of points that iterated and that are not
+    done. Only the points whose cell can reach mu_crit (flag 1 of interp_kernel.lookup) look
+    up their stretches. table: :func:`interp_kernel.lookup`'s; spec_P, spec_mu: its specs of
+    (P1, P2) and (mu1, mu2)."""
     flag = np.empty(E1.size, np.int8)
     interp_kernel.lookup(E1, E2, a1, a2, table, spec_P, P, flag)
     mu, one = np.empty((1, 2)), np.empty(1, np.int8)

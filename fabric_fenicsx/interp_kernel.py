@@ -1,4 +1,5 @@
-"""The surrogate's look-up, compiled: evaluate each point's cell polynomial.
+"""The surrogate's look-up, compiled: evaluate each point's cell polynomial (values, and
+derivatives for the time-step check), and check the inputs in one pass.
 
 A table cell's interpolant is the polynomial sum_pq C_pq t1^p t2^q in the cell's local
 coordinates (:func:`fabric_fenicsx.interp.power_matrix`), stored flat, P x P coefficients per

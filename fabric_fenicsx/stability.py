@@ -696,9 +696,9 @@ DISCUSSION: dict[str, str] = {
         "The opposite: a soft start (dt 4.887e-7 s at first, lowered 31 times as the crimp is "
         "pulled out) and later damage (0.572 ms). Clean.",
     "stretch-x10":
-        "A0 x 10 makes the straight yarn 10 x stiffer: the final dt is 3.2 x smaller than the "
-        "base's (6.367e-8 against 2.016e-7 s; sqrt(10) = 3.16 for the wave speed alone) and the "
-        "run takes 8555 steps instead of 2956. The same deflection needs less yarn stretch, so "
+        "A0 x 10 makes the straight yarn 10 x stiffer: the final dt is 3.0 x smaller than the "
+        "base's (6.655e-8 against 2.016e-7 s; sqrt(10) = 3.16 for the wave speed alone) and the "
+        "run takes 8465 steps instead of 2956. The same deflection needs less yarn stretch, so "
         "no yarn is damaged within 0.6 ms. The time-step control follows the stiffer material; "
         "the energy error stays at the base's level.",
     "crimp-0":
@@ -755,7 +755,7 @@ DISCUSSION: dict[str, str] = {
         "reached here. Clean.",
     "refined-4x":
         "4208 cells; dt is 4.4 x smaller than the base's at the start (7.351e-8 against "
-        "3.233e-7 s) and the run takes 6492 steps for 0.3 ms (28 s CPU, the most of the cases "
+        "3.233e-7 s) and the run takes 6492 steps for 0.3 ms (30 s CPU, the most of the cases "
         "whose tiles were cached); the energy error is at the coarse mesh's level. No damage "
         "by 0.3 ms. Clean.",
     "beyond-table":

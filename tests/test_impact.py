@@ -254,6 +254,37 @@ def test_path_energy_is_the_unit_cell_energy_in_tension(tmp_path):
     assert W[1:] == pytest.approx(psi[1:], rel=2e-3)
 
 
+def test_viscous_yarn_stress_opposes_the_stretch_rate_and_dissipates(tmp_path):
+    """The stiffness-proportional damping of YarnStress.update: no viscous stress at a constant
+    strain, a positive one while a stretched yarn lengthens and a negative one (never below
+    -P_el: tension-only) while it shortens; its work over a load-unload cycle is >= 0, and it
+    equals the trapezoidal sum of the viscous stresses over the stretch increments."""
+    from fabric_fenicsx.impact import YarnStress
+    sim = ImpactSimulation(tiny(), tmp_path / "out", verbose=False)
+    n = 40
+    mat = YarnStress(sim.surrogate, np.full(n, 1e-6), damage=False, beta=2e-8)
+    mat.dt_prev = 1e-7
+    one = np.ones(n)
+    E2 = np.linspace(0.0, 0.01, n)
+    path = [0.004, 0.006, 0.006, 0.008, 0.006, 0.004, 0.0]
+    work, prev = 0.0, (mat.lam.copy(), mat.P_v.copy())
+    for k, e in enumerate(path):
+        E1 = np.full(n, e)
+        P1, P2, _, _ = mat.update(E1, E2, one, one)
+        P_v = mat.P_v[0]
+        if k and e == path[k - 1]:
+            assert np.all(P_v == 0.0)
+        elif k and e > path[k - 1]:
+            assert np.all(P_v > 0.0)
+        elif k:
+            assert np.all(P_v < 0.0) and np.all(P1 >= 0.0)
+        lam, P_v_prev = prev
+        work += float(np.sum(mat.w * 0.5 * ((mat.P_v + P_v_prev) * (mat.lam - lam)).sum(axis=0)))
+        prev = (mat.lam.copy(), mat.P_v.copy())
+    assert mat.viscous_dissipation > 0.0
+    assert mat.viscous_dissipation == pytest.approx(work, rel=1e-12)
+
+
 def test_energy_balance_with_damage_off_and_outputs(tmp_path):
     out = tmp_path / "run"
     scene = tiny(["run.t_end=2.5e-4", "output.xdmf_interval=1e-4", "output.png=true",
