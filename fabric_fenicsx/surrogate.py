@@ -53,9 +53,6 @@ class Cells(NamedTuple):
     t1: np.ndarray
     t2: np.ndarray
 
-    def subset(self, rows) -> "Cells":
-        return Cells(self.i[rows], self.j[rows], self.t1[rows], self.t2[rows])
-
 
 class SurrogateError(RuntimeError):
     """The surrogate's damage iteration failed."""
@@ -167,7 +164,8 @@ class Surrogate:
                       "damaged": np.full((2, self.nE, self.nE, self.r_nodes, nq, P, P), np.nan)}
         self.built = {"intact": np.zeros((self.n_tiles,) * 2, bool),
                       "damaged": np.zeros((self.n_tiles,) * 2, bool)}
-        self._taps = (1, 3) if self.order == 3 else (0, 1)  # cell i's taps: nodes i - 1 .. i + 2
+        taps = interp.TAPS[self.order]
+        self._taps = (-taps[0], taps[-1] - taps[0])  # cell i reads nodes i - lo .. i - lo + span
         self._ready = {layer: np.zeros((self.nE, self.nE), bool) for layer in self.built}
         self._kernel_quantities = {}  # quantities -> interp_kernel.lookup's spec of them
         self._law = damage_kernel.law_arguments(fabric.damage)
@@ -263,13 +261,13 @@ class Surrogate:
         """Per-cell polynomial coefficients C_pq (value = sum C_pq t1^p t2^q) of the cells
         [i0, i1] x [j0, j1] whose taps touch a changed tile (cells beside an unbuilt tile
         hold NaN and are never looked up)."""
-        first, last = (1, self.nE - 3) if self.order == 3 else (0, self.nE - 2)
+        first, last = interp.cell_range(self.order, self.nE)
         i0, i1 = max(i0, first), min(i1, last)
         j0, j1 = max(j0, first), min(j1, last)
         if i0 > i1 or j0 > j1:
             return
         M = interp.power_matrix(self.order)
-        offsets = interp.kernel(self.order, np.zeros(1))[0]
+        offsets = interp.TAPS[self.order]
         if layer == "intact":
             V = np.moveaxis(self.intact, -1, 0)  # (nq, nE, nE)
             F = np.stack([np.stack([V[:, i0 + oa:i1 + 1 + oa, j0 + ob:j1 + 1 + ob] for ob in offsets])
@@ -415,7 +413,7 @@ class Surrogate:
 
     def _table(self):
         """The tables and cell maps as :func:`interp_kernel.lookup` takes them."""
-        first, last = self._taps[0], self.nE - 2 - self._taps[0]  # interp.locate's clip
+        first, last = interp.cell_range(self.order, self.nE)
         return (self._coef["intact"].reshape(-1), self._coef["damaged"].reshape(-1),
                 self._ready["intact"], self._ready["damaged"], self._safe["intact"],
                 self._safe["damaged"], self.E_lo, self.h, first, last, self.r_nodes,
