@@ -16,8 +16,8 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from fabric_fenicsx.impact import run_impact
-from fabric_fenicsx.scene import load_scene
+from fabric_fenicsx.impact.simulation import run_impact
+from fabric_fenicsx.impact.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 

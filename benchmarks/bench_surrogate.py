@@ -14,9 +14,9 @@ import time
 
 import numpy as np
 
-from fabric_fenicsx.materials import zylon_as
-from fabric_fenicsx.surrogate import Surrogate
-from fabric_fenicsx.unitcell import UnitCell
+from fabric_fenicsx.material.fabric import zylon_as
+from fabric_fenicsx.surrogate.table import Surrogate
+from fabric_fenicsx.material.unitcell import UnitCell
 
 
 def main():

@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from fabric_fenicsx.materials import zylon_as
-from fabric_fenicsx.static import run_scenario
-from fabric_fenicsx.unitcell import N_ELEMENTS_DEFAULT, UnitCell
+from fabric_fenicsx.material.fabric import zylon_as
+from fabric_fenicsx.studies.static import run_scenario
+from fabric_fenicsx.material.unitcell import N_ELEMENTS_DEFAULT, UnitCell
 
 FABRIC = zylon_as("max")
 

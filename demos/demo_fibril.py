@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from fabric_fenicsx.fibril import ExponentialDamage, FibrilBundle, fit_beta  # noqa: E402
+from fabric_fenicsx.material.fibril import ExponentialDamage, FibrilBundle, fit_beta  # noqa: E402
 
 WIDTH = 0.03
 YARNS = {"warp": 1.025, "fill": 1.0297, "virgin": 1.03}  # mu_crit, Table 1

@@ -14,8 +14,8 @@ Run:  python3 demos/demo_impact.py [output_dir]      (default output_dir: out/im
 import sys
 from pathlib import Path
 
-from fabric_fenicsx.impact import run_impact
-from fabric_fenicsx.scene import load_scene
+from fabric_fenicsx.impact.simulation import run_impact
+from fabric_fenicsx.impact.scene import load_scene
 
 SCENE = Path(__file__).resolve().parent / "scenes" / "y90.toml"
 V0 = 123.69

@@ -8,7 +8,7 @@ the transverse wave (kink) in the laboratory, U, and per reference length, W.  T
 membrane solver (`CentralDifference` with `LinearYarnMaterial`, Courant safety 0.9) is run on a
 half strip of 1 m at V = 75 m/s (eps = 0.95 %) and 175 m/s (eps = 3.0 %) on three meshes
 (400, 800, 1600 elements along the strip, h = 2.5, 1.25, 0.625 mm), see
-`fabric_fenicsx.smith` for the set-up and how the fronts are measured.
+`fabric_fenicsx.studies.smith` for the set-up and how the fronts are measured.
 
 Shows: all simulated quantities agree with the theory to well within 2 % and converge with h; the
 remaining longitudinal-speed error is the dispersion of the central-difference scheme at Courant
@@ -31,7 +31,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from fabric_fenicsx import smith  # noqa: E402
+from fabric_fenicsx.studies import smith  # noqa: E402
 
 K, RHO_A = 5.0e5, 0.158
 VELOCITIES = (75.0, 175.0)

@@ -12,8 +12,8 @@ Run:  python3 demos/demo_static.py [output_dir]      (default output_dir: out/st
 import sys
 from pathlib import Path
 
-from fabric_fenicsx.materials import zylon_as
-from fabric_fenicsx.static import format_key_points, plot_scenario, run_scenario, write_key_points
+from fabric_fenicsx.material.fabric import zylon_as
+from fabric_fenicsx.studies.static import format_key_points, plot_scenario, run_scenario, write_key_points
 
 STEP = 0.001  # coarser than the CLI's default 0.0005: a quick look (the thesis's points differ by < 1 step)
 THESIS = {

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import ufl
 
-from fabric_fenicsx.impact import ImpactSimulation
-from fabric_fenicsx.scene import build_scene
+from fabric_fenicsx.impact.simulation import ImpactSimulation
+from fabric_fenicsx.impact.scene import build_scene
 
 SCENE = {  # a small square patch hit at 20 m/s; damage off keeps it elastic
     "material": {"angle": 0.0, "damage": False},

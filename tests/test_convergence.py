@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from fabric_fenicsx import convergence as cv
+from fabric_fenicsx.cli import convergence as cli
+from fabric_fenicsx.studies import convergence as cv
 
 
 def manufactured(h, f0=3.0, C=2.0, p=1.5):
@@ -159,7 +160,7 @@ def test_ensemble_recommendation_takes_the_coarsest_level_with_every_finer_mean_
 def test_dt_ladder_mesh_per_case():
     import argparse
     parser = argparse.ArgumentParser()
-    cv.add_arguments(parser)
+    cli.add_arguments(parser)
     assert parser.parse_args(["--dt-mesh", "damaged=1.41", "--dt-mesh", "3"]).dt_mesh == [("damaged", 1.41), (None, 3.0)]
     with pytest.raises(SystemExit):
         parser.parse_args(["--dt-mesh", "plastic=2"])

@@ -1,9 +1,9 @@
-"""The damage iteration (fabric_fenicsx.damage_solver) on manufactured targets."""
+"""The damage iteration (fabric_fenicsx.material.damage_solver) on manufactured targets."""
 
 import numpy as np
 import pytest
 
-from fabric_fenicsx.damage_solver import DamageIterationError, solve_damage
+from fabric_fenicsx.material.damage_solver import DamageIterationError, solve_damage
 
 
 def jump_target(jump: float, at: float = 0.3):

@@ -85,11 +85,14 @@ def energy_history(n=8, n_steps=40, angle=np.deg2rad(30), bump="gauss"):
 def test_linear_yarn_material_is_tension_only():
     mat = LinearYarnMaterial(2.0, 3.0)
     lam = np.array([0.9, 1.0, 1.1])
-    a = np.ones(3)
-    P1, P2, a1, a2 = mat.update(0.5 * (lam**2 - 1), 0.5 * (lam**2 - 1), a, a)
+    E = 0.5 * (lam**2 - 1)
+    P1, P2 = mat.update(E, E)
     assert np.allclose(P1, [0.0, 0.0, 0.2]) and np.allclose(P2, [0.0, 0.0, 0.3])
-    assert a1 is a and a2 is a
+    assert np.all(mat.state.alpha1 == 1.0) and not mat.state.removed.any()
     assert mat.max_wave_modulus() == 3.0
+    mat.remove([2])                        # a removed point carries nothing from then on
+    P1, P2 = mat.update(E, E)
+    assert P1[2] == 0.0 and P2[2] == 0.0 and P1[:2].sum() == 0.0
     with pytest.raises(ValueError, match="k2"):
         LinearYarnMaterial(1.0, -1.0)
 

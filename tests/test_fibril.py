@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from fabric_fenicsx.fibril import (
+from fabric_fenicsx.material.fibril import (
     BundleDamage,
     ExponentialDamage,
     FibrilBundle,

@@ -1,4 +1,4 @@
-"""The impact driver (fabric_fenicsx.impact) on tiny scenes: contact coupled to the membrane,
+"""The impact driver (fabric_fenicsx.impact.simulation) on tiny scenes: contact coupled to the membrane,
 friction, cell deletion, the energy balance with damage off, the end of a run, trouble
 messages and serial against 2-rank runs.
 
@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 from fabric_fenicsx.fem.projectile import ProjectileState
-from fabric_fenicsx.impact import (ImpactError, ImpactSimulation, chatter_statistics, run_impact,
-                                   straight_yarn_modulus)
-from fabric_fenicsx.scene import build_scene
+from fabric_fenicsx.fem.yarn_stress import WAVE_MODULUS_MARGIN, YarnStress, straight_yarn_modulus
+from fabric_fenicsx.impact.chatter import chatter_statistics
+from fabric_fenicsx.impact.simulation import ImpactError, ImpactSimulation, run_impact
+from fabric_fenicsx.impact.scene import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -43,7 +44,7 @@ def pressed(tmp_path, depth=1e-4, overrides=()):
     node under the face is inside the solid."""
     sim = ImpactSimulation(tiny(overrides), tmp_path / "out", verbose=False)
     sim.state = ProjectileState(z=-depth, vz=0.0, mass=sim.state.mass)
-    sim.books.z_max = 0.0
+    sim.ledger.z_max = 0.0
     x0, y0 = sim.projectile.axis_xy
     r = np.hypot(sim.X[:, 0] - x0, sim.X[:, 1] - y0)
     inside = r < sim.projectile.radius
@@ -119,7 +120,7 @@ def test_deleted_cell_carries_no_force(tmp_path):
 
     def force():
         E1, E2 = m.yarn_strains()
-        P1, P2, a1, a2 = mat.update(E1, E2, mat.alpha1, mat.alpha2)
+        P1, P2 = mat.update(E1, E2)
         m.set_stress(P1, P2)
         return m.internal_force(), P1, P2
 
@@ -127,10 +128,10 @@ def test_deleted_cell_carries_no_force(tmp_path):
     assert np.all(P1[c * npc:(c + 1) * npc] > 0)
     mat.alpha1[c * npc:(c + 1) * npc] = 0.0     # both yarns broken at all its points: SDV1 = 0
     mat.alpha2[c * npc:(c + 1) * npc] = 0.0
-    delete, erode = sim._removal()
+    delete, erode = sim.removal.select()
     assert list(delete) == [c] and erode.size == 0
-    sim._remove(delete, erode)
-    sim._update_removed_cells()
+    sim.removal.remove(delete, erode)
+    sim.removal.update_nodes()
     f_dead, P1, P2 = force()
     assert np.all(P1[c * npc:(c + 1) * npc] == 0) and np.all(P2[c * npc:(c + 1) * npc] == 0)
     diff = np.abs(f_live - f_dead).reshape(-1, 3).sum(axis=1)
@@ -148,13 +149,13 @@ def test_erosion_takes_out_cells_stretched_beyond_the_unit_cell(tmp_path):
     mat.E1[5 * npc + 2] = 1.5      # one point of cell 5: warp direction beyond the erosion strain
     mat.E2[9 * npc:10 * npc] = 0.9  # cell 9: below it everywhere
     mat.alpha1[5 * npc + 2] = 0.0   # its warp broken, the fill alive: not deletable (SDV1 = 1)
-    delete, erode = sim._removal()
+    delete, erode = sim.removal.select()
     assert delete.size == 0 and list(erode) == [5]
-    sim._remove(delete, erode)
-    assert not sim.live_cells[5] and sim.eroded_cells[5] and not mat.live[5 * npc:6 * npc].any()
+    sim.removal.remove(delete, erode)
+    assert not sim.live_cells[5] and sim.removal.eroded_cells[5] and not mat.live[5 * npc:6 * npc].any()
     assert mat.live.sum() == mat.live.size - npc
-    strain, one = np.full(mat.w.size, 0.01), np.ones(mat.w.size)
-    P1, P2, _, _ = mat.update(strain, strain, one, one)   # uniform 1 %: stressed, except cell 5
+    strain = np.full(mat.w.size, 0.01)
+    P1, P2 = mat.update(strain, strain)   # uniform 1 %: stressed, except cell 5
     assert np.all(P1[5 * npc:6 * npc] == 0) and np.all(P2[5 * npc:6 * npc] == 0)
     assert np.all(P1[mat.live] > 0) and np.all(P2[mat.live] > 0)
 
@@ -166,12 +167,12 @@ def test_wrinkled_yarns_carry_nothing_and_do_not_set_the_time_step(tmp_path):
     one = np.ones(n)
     # biaxial compression near a jump of the unit cell's compressive branch: all slack
     E1, E2 = np.full(n, -0.046), np.linspace(-0.031, -0.027, n)
-    P1, P2, _, _ = mat.update(E1, E2, one, one)
+    P1, P2 = mat.update(E1, E2)
     assert np.all(P1 == 0) and np.all(P2 == 0)
     assert mat.wave_modulus() == 0.0
     # crimp interchange: a stretched warp keeps the compressed fill taut
     E1, E2 = np.full(n, 0.03), np.full(n, -0.01)
-    P1, P2, _, _ = mat.update(E1, E2, one, one)
+    P1, P2 = mat.update(E1, E2)
     assert np.all(P1 > 0) and np.all(P2 > 0)
     assert 0 < mat.wave_modulus() <= 1.05 * straight_yarn_modulus(sim.fabric)
     assert mat.modulus_bounded == 0
@@ -204,7 +205,6 @@ class SteepTable:
 def test_the_wave_modulus_is_bounded_per_point_by_the_straight_yarn(alphas, steep_over_k, bounded):
     """No unit-cell state is stiffer than its straight yarns: YarnStress.wave_modulus cuts a
     steeper interpolated tangent to WAVE_MODULUS_MARGIN alpha_max k and counts the cut points."""
-    from fabric_fenicsx.impact import WAVE_MODULUS_MARGIN, YarnStress
     k, n = 6.47e6, 5
     mat = YarnStress(SteepTable(steep_over_k * k), np.ones(n), damage=True, straight_modulus=k)
     mat.E1, mat.E2 = np.full(n, 1e-4), np.full(n, -0.054)        # fill compressed, warp stretched
@@ -224,9 +224,8 @@ def test_no_state_in_biaxial_tension_is_stiffer_than_the_straight_yarns(tmp_path
     the docstring of `impact.WAVE_MODULUS_MARGIN`. Beyond a yarn's failure strain the table's
     values depend on the order its tiles were built in (1.15 k was seen at E1 = 0.093 in one
     build of five), see docs/impact.md, "Reproducibility"."""
-    from fabric_fenicsx.impact import WAVE_MODULUS_MARGIN
-    from fabric_fenicsx.materials import zylon_as
-    from fabric_fenicsx.surrogate import Surrogate
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.surrogate.table import Surrogate
     fabric = zylon_as("max")
     sur = Surrogate(fabric, cache_dir=tmp_path, resolution=0.004, r_nodes=6, tile=8, progress=False)
     k = straight_yarn_modulus(fabric)
@@ -259,18 +258,16 @@ def test_viscous_yarn_stress_opposes_the_stretch_rate_and_dissipates(tmp_path):
     strain, a positive one while a stretched yarn lengthens and a negative one (never below
     -P_el: tension-only) while it shortens; its work over a load-unload cycle is >= 0, and it
     equals the trapezoidal sum of the viscous stresses over the stretch increments."""
-    from fabric_fenicsx.impact import YarnStress
     sim = ImpactSimulation(tiny(), tmp_path / "out", verbose=False)
     n = 40
     mat = YarnStress(sim.surrogate, np.full(n, 1e-6), damage=False, beta=2e-8)
     mat.dt_prev = 1e-7
-    one = np.ones(n)
     E2 = np.linspace(0.0, 0.01, n)
     path = [0.004, 0.006, 0.006, 0.008, 0.006, 0.004, 0.0]
     work, prev = 0.0, (mat.lam.copy(), mat.P_v.copy())
     for k, e in enumerate(path):
         E1 = np.full(n, e)
-        P1, P2, _, _ = mat.update(E1, E2, one, one)
+        P1, P2 = mat.update(E1, E2)
         P_v = mat.P_v[0]
         if k and e == path[k - 1]:
             assert np.all(P_v == 0.0)

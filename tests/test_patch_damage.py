@@ -8,9 +8,9 @@ import pytest
 from mpi4py import MPI
 
 from fabric_fenicsx.fem.membrane import Membrane, yarn_directions
-from fabric_fenicsx.materials import zylon_as
-from fabric_fenicsx.surrogate import Surrogate
-from fabric_fenicsx.unitcell import UnitCell
+from fabric_fenicsx.material.fabric import zylon_as
+from fabric_fenicsx.surrogate.table import Surrogate
+from fabric_fenicsx.material.unitcell import UnitCell
 
 from test_membrane import A, boundary_mask, homogeneous, square
 

@@ -3,7 +3,7 @@
 import json
 import shutil
 
-from fabric_fenicsx import provenance
+from fabric_fenicsx.studies import provenance
 
 
 def test_a_stored_run_is_reused_only_with_the_same_settings_and_model_version(tmp_path):
@@ -30,10 +30,10 @@ def test_the_model_version_follows_the_physics_modules_only(tmp_path, monkeypatc
 
     try:
         base = version()
-        (copy / "convergence.py").write_text("# a report writer edited\n")
+        (copy / "studies" / "convergence.py").write_text("# a report writer edited\n")
         assert version() == base
-        source = (copy / "impact.py").read_text()
-        (copy / "impact.py").write_text(source.replace('"""', '"""Prose edited. ', 1) + "\n# a comment\n")
+        source = (copy / "impact" / "simulation.py").read_text()
+        (copy / "impact" / "simulation.py").write_text(source.replace('"""', '"""Prose edited. ', 1) + "\n# a comment\n")
         assert version() == base                            # docstrings and comments are prose
         with open(copy / "fem" / "membrane.py", "a") as f:
             f.write("\n_A_PHYSICS_MODULE_EDITED = 1\n")

@@ -1,4 +1,4 @@
-"""Impact scene files (fabric_fenicsx.scene): the Table 3 scenes, overrides, and clear failures
+"""Impact scene files (fabric_fenicsx.impact.scene): the Table 3 scenes, overrides, and clear failures
 on bad input before any work is done."""
 
 import os
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from fabric_fenicsx.scene import (EDGES, FIELDS, SCHEMA, SceneError, build_scene, load_scene,
+from fabric_fenicsx.impact.scene import (EDGES, FIELDS, SCHEMA, SceneError, build_scene, load_scene,
                                   parse_override)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -129,6 +129,6 @@ def test_cli_check_prints_the_resolved_scene():
 
 
 def test_cli_module_does_not_import_dolfinx():
-    code = "import sys, fabric_fenicsx.impact_cli, fabric_fenicsx.scene; print('dolfinx' in sys.modules)"
+    code = "import sys, fabric_fenicsx.cli.impact, fabric_fenicsx.impact.scene; print('dolfinx' in sys.modules)"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert proc.stdout.strip() == "False", proc.stderr

@@ -1,6 +1,6 @@
 """Analytic verification of the explicit dynamics: Smith's transverse impact on a strip (issue 4).
 
-Closed form (fabric_fenicsx.smith) checked against independent relations (jump conditions at the
+Closed form (fabric_fenicsx.studies.smith) checked against independent relations (jump conditions at the
 fronts, the quartic obtained by squaring Smith's relation, the small-strain expansion); the
 explicit membrane solver checked against the closed form at two bar speeds (strains of about 1 %
 and 3 %) on two coarse meshes.
@@ -8,7 +8,7 @@ and 3 %) on two coarse meshes.
 import numpy as np
 import pytest
 
-from fabric_fenicsx import smith
+from fabric_fenicsx.studies import smith
 
 K = 5.0e5       # yarn stiffness (N/m)
 RHO_A = 0.158   # areal density (kg/m^2)

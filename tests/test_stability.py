@@ -1,4 +1,4 @@
-"""The stability study (fabric_fenicsx.stability, issue 4): its fabric variants, outcome
+"""The stability study (fabric_fenicsx.studies.stability, issue 4): its fabric variants, outcome
 parsing and verdicts, and its fast cases run short on the coarse Y90 mesh.
 
 Each run asserts an outcome that could be false: a completed run has finite fields and an
@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from fabric_fenicsx.materials import zylon_as
-from fabric_fenicsx.stability import (BASE_OVERRIDES, CASES, EDGE_Y, ENERGY_LIMIT, Case, assess,
+from fabric_fenicsx.material.fabric import zylon_as
+from fabric_fenicsx.studies.stability import (BASE_OVERRIDES, CASES, EDGE_Y, ENERGY_LIMIT, Case, assess,
                                       make_fabric, parse_stop_message, run_case, scaled_stiffness,
                                       with_crimp)
 

@@ -13,11 +13,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from fabric_fenicsx import static
+from fabric_fenicsx.studies import static
 from fabric_fenicsx.cli import main
-from fabric_fenicsx.materials import zylon_as
-from fabric_fenicsx.static import SCENARIOS, run_scenario
-from fabric_fenicsx.unitcell import UnitCell
+from fabric_fenicsx.material.fabric import zylon_as
+from fabric_fenicsx.studies.static import SCENARIOS, run_scenario
+from fabric_fenicsx.material.unitcell import UnitCell
 
 STEP = 0.0005
 
@@ -271,7 +271,7 @@ def test_cli_bad_step(tmp_path, capsys, step):
 def test_static_never_imports_dolfinx():
     import subprocess
 
-    code = ("import sys, fabric_fenicsx.static as s; s.run_scenario('equibiaxial', step=0.005, "
+    code = ("import sys, fabric_fenicsx.studies.static as s; s.run_scenario('equibiaxial', step=0.005, "
             "progress=False); assert 'dolfinx' not in sys.modules, 'dolfinx imported'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
     assert math.isfinite(STEP)

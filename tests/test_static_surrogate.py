@@ -2,7 +2,7 @@
 
 import pytest
 
-from fabric_fenicsx.static import run_scenario
+from fabric_fenicsx.studies.static import run_scenario
 
 
 @pytest.fixture(scope="module")

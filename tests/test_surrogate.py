@@ -5,10 +5,10 @@ import os
 import numpy as np
 import pytest
 
-from fabric_fenicsx.fibril import BundleDamage, ExponentialDamage
-from fabric_fenicsx.materials import zylon_as
-from fabric_fenicsx.surrogate import Surrogate
-from fabric_fenicsx.unitcell import UnitCell
+from fabric_fenicsx.material.fibril import BundleDamage, ExponentialDamage
+from fabric_fenicsx.material.fabric import zylon_as
+from fabric_fenicsx.surrogate.table import Surrogate
+from fabric_fenicsx.material.unitcell import UnitCell
 
 FABRIC = zylon_as("max")
 P_PEAK = 148e3  # N/m, peak of the uniaxial-strain response (scenario 1)
@@ -180,7 +180,7 @@ def test_skipping_the_stretch_lookup_below_damage_changes_nothing(sur):
 def test_a_tile_block_does_not_depend_on_the_block_solved_before(alpha):
     """Where the unit cell has several equilibria (both yarns compressed, E2 near the table's
     end) a warm start from another block used to pick another one: 4e5 N/m apart in P2."""
-    from fabric_fenicsx import tiles
+    from fabric_fenicsx.surrogate import tiles
     E1s = np.arange(-0.06, 0.1, 0.008)
     E2s = np.array([-0.06, -0.056])
     tiles._worker_init(FABRIC.to_dict(), 24)
@@ -224,8 +224,8 @@ def test_lookup_reproduces_the_table_nodes(sur):
 def test_compiled_damage_iteration_matches_the_solver_run_in_python(sur):
     """damage_kernel compiles damage_solver's code; run in Python (as the unit cell runs it)
     with the surrogate's target it gives the same integrities."""
-    from fabric_fenicsx.damage_solver import solve_damage
-    from fabric_fenicsx.unitcell import ALPHA_BROKEN
+    from fabric_fenicsx.material.damage_solver import solve_damage
+    from fabric_fenicsx.material.unitcell import ALPHA_BROKEN
     rng = np.random.default_rng(11)
     n = 400
     E1 = rng.uniform(0.02, 0.08, n)
@@ -253,7 +253,7 @@ def test_compiled_damage_iteration_matches_the_solver_run_in_python(sur):
 @pytest.mark.parametrize("law", [ExponentialDamage(), ExponentialDamage(beta=5.0, width=0.05),
                                  BundleDamage.for_width(0.03, 1.03, n=500, seed=2)])
 def test_compiled_damage_laws_match_the_fibril_module(law):
-    from fabric_fenicsx.damage_kernel import law_alpha, law_arguments
+    from fabric_fenicsx.surrogate.kernels.damage import law_alpha, law_arguments
     mu_crit = 1.03
     mu = np.concatenate([np.linspace(1.0, 1.07, 701), [mu_crit, law.mu_complete(mu_crit)]])
     compiled = np.array([law_alpha(m, mu_crit, law_arguments(law)) for m in mu])

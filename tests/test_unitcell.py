@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from fabric_fenicsx.materials import Fabric, Yarn, zylon_as
-from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell, UnitCellError
+from fabric_fenicsx.material.fabric import Fabric, Yarn, zylon_as
+from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell, UnitCellError
 
 FABRIC = zylon_as("max")
 

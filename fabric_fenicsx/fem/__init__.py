@@ -1,5 +1,25 @@
-"""Finite-element layer of fabric_fenicsx (DOLFINx 0.5.2): meshes, membrane forms, explicit dynamics.
+"""Finite-element layer (DOLFINx 0.5.2): meshes, the membrane and its weak-form terms, the
+quadrature-point adapter of the surrogate, the explicit integrator, contact and the rigid
+projectile.
 
-Kept import-free on purpose: import the submodules you need, e.g.
-``from fabric_fenicsx.fem.mesh import MeshSpec, load_mesh``.
+- :mod:`.mesh`: gmsh fabric meshes and uniform squares, clamped edges, cell sizes;
+- :mod:`.membrane`: kinematics F = I_32 + Grad u, yarn strains, live-cell mask, assembly;
+- :mod:`.terms`: weak-form terms (yarn stresses, isotropic shear, your own);
+- :mod:`.yarn_stress`: the surrogate at the quadrature points (``YarnStress``);
+- :mod:`.explicit`: central difference with a lumped mass and energy bookkeeping;
+- :mod:`.projectile`: rigid projectile and penalty contact with friction.
+
+Names are re-exported lazily: ``import fabric_fenicsx.fem`` alone does not load DOLFINx.
 """
+from fabric_fenicsx._lazy import lazy_exports
+
+_EXPORTS = {
+    "MeshSpec": "mesh", "load_mesh": "mesh", "uniform_square": "mesh", "edge_dofs": "mesh",
+    "min_cell_size": "mesh", "Membrane": "membrane", "yarn_directions": "membrane",
+    "MembraneTerm": "terms", "YarnTerm": "terms", "IsotropicShear": "terms",
+    "YarnStress": "yarn_stress", "straight_yarn_modulus": "yarn_stress",
+    "CentralDifference": "explicit", "EnergyRecord": "explicit", "LinearYarnMaterial": "explicit",
+    "Projectile": "projectile", "ProjectileState": "projectile", "PenaltyContact": "projectile",
+}
+__all__ = sorted(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -36,16 +36,19 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from fabric_fenicsx.material.contract import DamageState
+
 __all__ = ["CentralDifference", "EnergyRecord", "LinearYarnMaterial"]
 
 
 class LinearYarnMaterial:
     """Stand-in material for tests: tension-only linear yarns, P_i = k_i max(lambda_i - 1, 0)
-    (N/m), lambda_i = sqrt(1 + 2 E_i) (Eq. 2-3); damage variables alpha_i pass through unchanged.
+    (N/m), lambda_i = sqrt(1 + 2 E_i) (Eq. 2-3), no damage.  Not a fabric model.
 
-    It implements the contract the membrane driver consumes from the unit-cell surrogate:
-    `update(E1, E2, alpha1, alpha2) -> (P1, P2, alpha1, alpha2)` vectorised over points and
-    `max_wave_modulus()` -> max_i dP_i/dlambda_i (N/m).  Not a fabric model.
+    It implements both shapes of the material-point contract
+    (:mod:`fabric_fenicsx.material.contract`): the state-free ``MaterialLaw``
+    (``constitutive_update``, ``wave_modulus``) and the ``QuadratureMaterial`` the integrator
+    calls (``update(E1, E2) -> (P1, P2)``, ``state``, ``max_wave_modulus()``, ``remove``).
     """
 
     def __init__(self, k1: float, k2: float):
@@ -53,6 +56,8 @@ class LinearYarnMaterial:
             if not np.isfinite(k) or k <= 0:
                 raise ValueError(f"{name} must be a finite positive stiffness in N/m, got {k!r}")
         self.k1, self.k2 = float(k1), float(k2)
+        self._state: DamageState | None = None
+        self._removed = np.zeros(0, dtype=np.int64)
 
     @staticmethod
     def _stretch(E: np.ndarray, name: str) -> np.ndarray:
@@ -61,16 +66,38 @@ class LinearYarnMaterial:
             raise ValueError(f"{name} must be > -0.5 (stretch > 0), got min {E.min()!r}")
         return np.sqrt(1.0 + 2.0 * E)
 
-    def update(self, E1, E2, alpha1, alpha2):
-        """Yarn stresses for the yarn strains E1, E2 (Eq. 2-3); returns (P1, P2, alpha1, alpha2)."""
+    def constitutive_update(self, E1, E2, state: DamageState):
+        """Yarn stresses for the yarn strains E1, E2 (Eq. 2-3): (P1, P2, state unchanged)."""
         lam1, lam2 = self._stretch(E1, "E1"), self._stretch(E2, "E2")
         P1 = self.k1 * np.maximum(lam1 - 1.0, 0.0)
         P2 = self.k2 * np.maximum(lam2 - 1.0, 0.0)
-        return P1, P2, alpha1, alpha2
+        return P1, P2, state
+
+    def wave_modulus(self, E1, E2, state: DamageState) -> np.ndarray:
+        """max(k1, k2) at every point (N/m): the tangent is diagonal, diag(k1, k2) in tension."""
+        return np.full(np.shape(E1), self.max_wave_modulus())
+
+    @property
+    def state(self) -> DamageState:
+        """Damage state of the points of the last :meth:`update` (always intact)."""
+        return self._state
+
+    def update(self, E1, E2):
+        """(P1, P2) at the membrane's points; points taken out by :meth:`remove` carry nothing."""
+        if self._state is None or self._state.alpha1.shape != np.shape(E1):
+            self._state = DamageState.intact(np.size(E1))
+        P1, P2, self._state = self.constitutive_update(E1, E2, self._state)
+        P1[self._removed] = 0.0
+        P2[self._removed] = 0.0
+        return P1, P2
 
     def max_wave_modulus(self) -> float:
         """max over both yarns of dP_i/dlambda_i (N/m)."""
         return max(self.k1, self.k2)
+
+    def remove(self, points) -> None:
+        """Take points out for good: no stress there from now on."""
+        self._removed = np.union1d(self._removed, np.asarray(points, dtype=np.int64))
 
     def energy_density(self, E1, E2) -> np.ndarray:
         """Stored energy per reference area (J/m^2), 0.5 k_i (lambda_i - 1)^2 on tension."""
@@ -100,8 +127,9 @@ class CentralDifference:
 
     Args:
         membrane: the `fabric_fenicsx.fem.membrane.Membrane`; its displacement `u` is the state.
-        material: object with `update(E1, E2, alpha1, alpha2) -> (P1, P2, alpha1, alpha2)` and
-            `max_wave_modulus()` (see `LinearYarnMaterial`).
+        material: the :class:`~fabric_fenicsx.material.contract.QuadratureMaterial` at the
+            membrane's owned points (``update(E1, E2) -> (P1, P2)``, ``max_wave_modulus()``); it
+            keeps its damage history itself (see ``LinearYarnMaterial``, ``YarnStress``).
         areal_density: rho_A of the reference fabric (kg/m^2).
         clamped_dofs: local unrolled dof indices with zero acceleration (ghost indices allowed,
             they are ignored here because their owner handles them).
@@ -112,7 +140,6 @@ class CentralDifference:
             after editing it by hand).
         v: owned velocity dofs: v(0) before the first step, v^{n+1/2} afterwards.
         mass: lumped mass per owned dof (kg).
-        alpha1, alpha2: damage state of warp and fill at the owned quadrature points.
         energy: `EnergyRecord` at the time of the last evaluated internal force.
         timings: accumulated wall time (s) per phase: strain, material, assembly, rest.
     """
@@ -140,8 +167,6 @@ class CentralDifference:
 
         self.u = membrane.u.x.array[:n]
         self.v = np.zeros(n)
-        self.alpha1 = np.ones(membrane.n_points)
-        self.alpha2 = np.ones(membrane.n_points)
 
         self.time = 0.0
         self.n_steps = 0
@@ -156,15 +181,17 @@ class CentralDifference:
         self.timings = {"strain": 0.0, "material": 0.0, "assembly": 0.0, "rest": 0.0}
 
     def stable_dt(self, safety: float = 0.9) -> float:
-        """safety * h_min / c_max with c_max = sqrt(max_wave_modulus / rho_A) (the Courant limit
-        of a lumped-mass linear element, omega_max = 2 c_max / h_min), lowered for the Rayleigh
-        damping as in the module docstring.  h_min is the smallest reference edge on any rank."""
+        """safety * h_min / c_max with c_max = sqrt(modulus / rho_A) (the Courant limit of a
+        lumped-mass linear element, omega_max = 2 c_max / h_min), lowered for the Rayleigh
+        damping as in the module docstring.  The modulus is the material's wave modulus plus
+        the membrane's terms' (``Membrane.terms_wave_modulus``); h_min is the smallest
+        reference edge on any rank."""
         if not (0 < safety <= 1):
             raise ValueError(f"safety must be in (0, 1], got {safety!r}")
-        modulus = float(self.material.max_wave_modulus())
+        modulus = float(self.material.max_wave_modulus()) + self.membrane.terms_wave_modulus()
         if not np.isfinite(modulus) or modulus <= 0:
-            raise ValueError("material.max_wave_modulus() must be finite and > 0 N/m, "
-                             f"got {modulus!r}")
+            raise ValueError("the wave modulus (material.max_wave_modulus() plus the membrane's "
+                             f"terms') must be finite and > 0 N/m, got {modulus!r}")
         c_max = np.sqrt(modulus / self.areal_density)
         omega_max = 2.0 * c_max / self.membrane.min_edge_length()
         xi = 0.5 * self.beta * omega_max
@@ -187,7 +214,7 @@ class CentralDifference:
         t0 = time.perf_counter()
         E1, E2 = m.yarn_strains()
         t1 = time.perf_counter()
-        P1, P2, alpha1, alpha2 = self.material.update(E1, E2, self.alpha1, self.alpha2)
+        P1, P2 = self.material.update(E1, E2)
         t2 = time.perf_counter()
         m.set_stress(P1, P2)
         f_int = m.internal_force()
@@ -230,7 +257,6 @@ class CentralDifference:
         self.u += self._du
         m.u.x.scatter_forward()
 
-        self.alpha1, self.alpha2 = alpha1, alpha2
         self._f_int, self._f_ext, self._f_damp = f_int, f_ext, f_damp
         self._res_c = residual[c]
         self._dt_prev = dt

@@ -27,6 +27,8 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fabric_fenicsx.fem.terms import MembraneTerm, YarnTerm
+
 __all__ = ["Membrane", "yarn_directions"]
 
 _BASIX_CELL = {"quadrilateral": basix.CellType.quadrilateral,
@@ -62,8 +64,10 @@ class Membrane:
         v: test function on V.
         F: UFL deformation gradient I_32 + Grad u (3 x 2).
         P1, P2: quadrature Functions holding the yarn stresses (N/m).
-        dx: integration measure with the quadrature metadata; use it in `extra_terms`.
-        extra_terms: list of UFL linear forms in `v` added to the residual by `weak_form()`.
+        dx: integration measure with the quadrature metadata.
+        terms: the weak-form terms (:mod:`fabric_fenicsx.fem.terms`), first the yarn term;
+            add one with :meth:`add_term`.
+        live: DG0 live-cell mask (1 live, 0 removed) that multiplies every term.
         quadrature_weights_detJ: reference area dA (m^2) of every owned quadrature point.
     """
 
@@ -132,9 +136,13 @@ class Membrane:
         self.n_owned_nodes = self.V.dofmap.index_map.size_local
         self.n_owned_dofs = 3 * self.n_owned_nodes
 
-        self.extra_terms: list = []
+        self.live = fem.Function(fem.FunctionSpace(msh, ("DG", 0)), name="live")
+        self.live.x.array[:] = 1.0
+        self._live_dofs = self.live.function_space.dofmap.list.array[:self.n_cells]
+        self.terms: list[MembraneTerm] = [YarnTerm()]
         self._form = None
         self._form_key = None
+        self._energy_forms: dict[int, object] = {}
         self._b = None
         self._h_min = None
 
@@ -146,34 +154,41 @@ class Membrane:
         return self.P1 * ufl.outer(l1, self.L1) + self.P2 * ufl.outer(l2, self.L2)
 
     def weak_form(self):
-        """Residual R(u; v) = int P : Grad v dA + sum(extra_terms): the internal virtual work of
-        the referential balance of momentum (Eq. 2-4) with the yarn stress of Eq. 2-5.
+        """Residual R(u; v) = sum over :attr:`terms` of int live r_term(u; v) dA: the internal
+        virtual work of the referential balance of momentum (Eq. 2-4), the yarn stress of
+        Eq. 2-5 first, every term switched off in removed cells by the live-cell mask."""
+        return sum(self.live * term.integrand(self) * self.dx for term in self.terms)
 
-        Extend the membrane by appending UFL linear forms in `self.v` (integrated with
-        `self.dx`) to `self.extra_terms`, e.g. `m.extra_terms.append(m.isotropic_shear_term(G))`.
-        """
-        # P : Grad v with P from Eq. 2-5 is sum_i P_i l_i . (Grad v L_i), l_i = a_i / lambda_i;
-        # written per yarn it compiles to a ~10 % faster kernel than inner(P, grad(v)).
-        grad_v = ufl.grad(self.v)
-        residual = (self.P1 / self.lambda1 * ufl.dot(self.a1, grad_v * self.L1)
-                    + self.P2 / self.lambda2 * ufl.dot(self.a2, grad_v * self.L2)) * self.dx
-        for term in self.extra_terms:
-            residual = residual + term
-        return residual
+    def add_term(self, term: MembraneTerm) -> MembraneTerm:
+        """Add a weak-form term (e.g. ``IsotropicShear(G)``); returns it."""
+        if not isinstance(term, MembraneTerm):
+            raise TypeError(f"term must be a fabric_fenicsx.fem.terms.MembraneTerm, got {term!r}")
+        self.terms.append(term)
+        return term
 
-    def isotropic_shear_term(self, shear_modulus: float):
-        """Residual of a small isotropic in-plane shear stiffness G (N/m): the variation of
-        int G dev(E) : dev(E) dA with the membrane Green strain E = (F^T F - I) / 2 (Eq. 2-2).
+    def terms_wave_modulus(self) -> float:
+        """Sum of the terms' own wave moduli (N/m), added to the material's for the stable time
+        step (the yarn term's stiffness is the material's and adds nothing here)."""
+        return float(sum(term.wave_modulus() for term in self.terms))
 
-        Not part of the thesis model (which neglects shear stresses, Sec. 2.1); an example of an
-        `extra_terms` entry, e.g. to regularise trellising modes.
-        """
-        if not np.isfinite(shear_modulus) or shear_modulus < 0:
-            raise ValueError(f"shear_modulus must be finite and >= 0 N/m, got {shear_modulus!r}")
-        E = 0.5 * (self.F.T * self.F - ufl.Identity(2))
-        devE = E - 0.5 * ufl.tr(E) * ufl.Identity(2)
-        energy = float(shear_modulus) * ufl.inner(devE, devE) * self.dx
-        return ufl.derivative(energy, self.u, self.v)
+    def term_energies(self) -> dict[str, float]:
+        """Stored energy (J, all ranks) of every term that books its own, over the live cells."""
+        energies = {}
+        for term in self.terms:
+            if id(term) not in self._energy_forms:
+                density = term.energy_density(self)
+                self._energy_forms[id(term)] = (None if density is None else
+                                                fem.form(self.live * density * self.dx))
+            form = self._energy_forms[id(term)]
+            if form is not None:
+                local = fem.assemble_scalar(form)
+                energies[term.name] = energies.get(term.name, 0.0) + self.comm.allreduce(local, op=MPI.SUM)
+        return energies
+
+    def remove_cells(self, cells: np.ndarray) -> None:
+        """Switch the owned cells ``cells`` off for every term (live-cell mask 0)."""
+        self.live.x.array[self._live_dofs[np.asarray(cells, dtype=np.int64)]] = 0.0
+        self.live.x.scatter_forward()
 
     # ---------------------------------------------------------------- point data (numpy)
     def yarn_strains(self) -> tuple[np.ndarray, np.ndarray]:
@@ -222,7 +237,7 @@ class Membrane:
     def internal_force(self) -> np.ndarray:
         """Owned part of f_int = assemble(weak_form()) (N) for the current u, P1, P2; ghost
         contributions are summed onto their owners (ADD/REVERSE)."""
-        key = tuple(id(t) for t in self.extra_terms)
+        key = tuple(id(t) for t in self.terms)
         if self._form is None or key != self._form_key:
             self._form = fem.form(self.weak_form(), jit_params=dict(self.jit_params))
             self._form_key = key

@@ -25,7 +25,7 @@ def _rank() -> int:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from fabric_fenicsx.scene import describe_schema
+    from fabric_fenicsx.impact.scene import describe_schema
 
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = "scene keys (section.key = default  # meaning):\n" + describe_schema()
@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fabric_fenicsx.scene import SceneError, load_scene
+    from fabric_fenicsx.impact.scene import SceneError, load_scene
 
     try:
         scene = load_scene(args.scene, args.overrides)
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     out = args.out or os.path.join("out", f"impact-{scene.name}")
 
-    from fabric_fenicsx.impact import ImpactError, run_impact
+    from fabric_fenicsx.impact.simulation import ImpactError, run_impact
 
     try:
         summary = run_impact(scene, out, verbose=not args.quiet)

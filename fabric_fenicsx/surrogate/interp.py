@@ -3,7 +3,7 @@
 Two 1D kernels, combined as tensor products: linear (2 taps, C0) and Catmull-Rom cubic
 convolution (4 taps, C1, third-order accurate for smooth data). A kernel's weights are
 polynomials in the local coordinate t in [0, 1) of a grid cell (:func:`power_matrix`), so a
-table cell's interpolant is one polynomial, evaluated by :mod:`fabric_fenicsx.interp_kernel`.
+table cell's interpolant is one polynomial, evaluated by :mod:`fabric_fenicsx.surrogate.kernels.interp`.
 """
 
 from __future__ import annotations

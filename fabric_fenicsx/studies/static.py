@@ -15,12 +15,11 @@ P_i = F_i / (2 w_j) (Eq. 2-31) with damage alpha_i = min(alpha_i^hist, alpha(mu_
 
 Monotone paths run on the grid E1 = k * step until every loaded yarn has failed completely,
 then ``EXTRA_STEPS`` more; they stop at ``E1_CAP`` at the latest (reported). Nothing here
-imports DOLFINx.
+imports DOLFINx. The command line (``fabric-fenicsx static``) is :mod:`fabric_fenicsx.cli.static`.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -31,8 +30,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from fabric_fenicsx.materials import Fabric, zylon_as
-from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell
+from fabric_fenicsx.material.fabric import Fabric, zylon_as
+from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell
 
 SCENARIOS = ("uniaxial-strain", "load-unload", "equibiaxial", "uniaxial-stress", "bending")
 COLUMNS = ("E1", "E2", "P1", "P2", "alpha1", "alpha2", "V")
@@ -78,7 +77,7 @@ class MaterialPoint(Protocol):
 
 
 class UnitCellPoint:
-    """The yarn unit cell (:class:`~fabric_fenicsx.unitcell.UnitCell`) as a material point."""
+    """The yarn unit cell (:class:`~fabric_fenicsx.material.unitcell.UnitCell`) as a material point."""
 
     supports_free_fill = True
     label = "unit cell"
@@ -92,7 +91,7 @@ class UnitCellPoint:
 
 def surrogate_point(fabric: Fabric):
     """The unit-cell surrogate as a material point (imported only when asked for)."""
-    from fabric_fenicsx.surrogate import material_point
+    from fabric_fenicsx.surrogate.table import material_point
     return material_point(fabric)
 
 
@@ -391,7 +390,8 @@ def _interp_P1(data, E1):
 
 
 # ----------------------------------------------------------------------------- scenarios
-def _check_step(step) -> float:
+def check_step(step) -> float:
+    """``step`` as a float, or a ValueError unless it is a finite number in (0, E1_CAP]."""
     try:
         s = float(step)
     except (TypeError, ValueError):
@@ -438,7 +438,7 @@ def run_scenario(name: str, fabric: Fabric | None = None, step: float = DEFAULT_
     """
     if name not in SCENARIOS:
         raise ValueError(f"scenario must be one of {', '.join(SCENARIOS)}; got {name!r}")
-    step = _check_step(step)
+    step = check_step(step)
     make = _factory(backend)
     if name == "bending" and getattr(make, "single", False):
         raise ValueError("the bending scene needs one material point per fill bending stiffness: "
@@ -677,50 +677,3 @@ def plot_scenario(result: ScenarioResult, path) -> None:
         axes[1].legend(fontsize=7)
     fig.suptitle(f"{result.fabric.name}, {result.backend}, step {result.step:g}", fontsize=8)
     fig.savefig(path, dpi=120)
-
-
-# ----------------------------------------------------------------------------- command line
-def _positive_step(text: str) -> float:
-    try:
-        return _check_step(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(f"--step: {err}") from None
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--scenario", required=True, choices=SCENARIOS, metavar="NAME",
-                        help="one of: " + ", ".join(SCENARIOS))
-    parser.add_argument("--out", default="out/static", metavar="DIR",
-                        help="output directory, created if missing (default: out/static); "
-                             "writes NAME.csv, NAME.png, NAME.json")
-    parser.add_argument("--step", type=_positive_step, default=DEFAULT_STEP,
-                        help=f"E1 increment (default {DEFAULT_STEP})")
-    parser.add_argument("--fabric", metavar="FILE.toml", help="fabric description (SI units); "
-                        "default: Zylon AS of Table 1")
-    parser.add_argument("--bending", choices=("max", "min"), default=None,
-                        help="bending-stiffness bound of the built-in Zylon AS (default max)")
-    parser.add_argument("--via", choices=tuple(BACKENDS), default="unitcell",
-                        help="material point: the unit cell (default) or its surrogate")
-    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
-
-
-def run(args: argparse.Namespace) -> int:
-    prog = "fabric-fenicsx static"
-    if args.fabric is not None and args.bending is not None:
-        raise SystemExit(f"{prog}: give either --fabric or --bending, not both")
-    try:
-        fabric = Fabric.load(args.fabric) if args.fabric else zylon_as(args.bending or "max")
-    except (OSError, ValueError) as err:
-        raise SystemExit(f"{prog}: cannot read the fabric {args.fabric!r}: {err}") from None
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    csv_path = out / f"{args.scenario}.csv"
-    # The built-in Zylon AS (either --bending preset) takes the Table 1 bounds of B2.
-    bounds = bending_bounds(None if args.fabric is None else fabric)
-    result = run_scenario(args.scenario, fabric=fabric, step=args.step, backend=args.via,
-                          progress=not args.quiet, csv_path=csv_path, fill_B0_bounds=bounds)
-    write_key_points(result, out / f"{args.scenario}.json")
-    plot_scenario(result, out / f"{args.scenario}.png")
-    print(format_key_points(result))
-    print(f"wrote {csv_path}, {out / (args.scenario + '.json')}, {out / (args.scenario + '.png')}")
-    return 0

@@ -4,7 +4,7 @@ with the target of the interpolated unit cell, alpha_i = min(alpha_i^hist, alpha
 
 numba compiles damage_solver's own functions (one implementation, run in Python by the unit
 cell) with their ``target`` bound to :func:`_target`; the fibril-scale laws of
-:mod:`fabric_fenicsx.fibril` are repeated here as scalar functions (tests compare them).
+:mod:`fabric_fenicsx.material.fibril` are repeated here as scalar functions (tests compare them).
 """
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ import types
 import numpy as np
 from numba import njit
 
-from fabric_fenicsx import damage_solver, interp_kernel
-from fabric_fenicsx.fibril import BundleDamage, ExponentialDamage
+from fabric_fenicsx.material import damage_solver
+from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
+from fabric_fenicsx.material.fibril import BundleDamage, ExponentialDamage
 
 EXPONENTIAL, BUNDLE = 0, 1
 

@@ -20,12 +20,12 @@ import json
 import subprocess
 from pathlib import Path
 
-PACKAGE = Path(__file__).resolve().parent
+PACKAGE = Path(__file__).resolve().parents[1]
 
-MODEL_MODULES = ("materials.py", "fibril.py", "unitcell.py", "damage_solver.py", "damage_kernel.py",
-                 "interp.py", "interp_kernel.py", "tiles.py", "surrogate.py", "scene.py", "impact.py",
-                 "yarn_stress_kernel.py", "fem/*.py")
+MODEL_MODULES = ("material/*.py", "surrogate/*.py", "surrogate/kernels/*.py", "fem/*.py", "impact/*.py")
 """The package's modules (globs relative to it) whose source determines an impact run's numbers."""
+NOT_MODEL = ("impact/output.py",)
+"""Modules matched by :data:`MODEL_MODULES` that only write what a run computed."""
 
 
 def code_without_prose(source: str) -> str:
@@ -45,10 +45,11 @@ def code_without_prose(source: str) -> str:
 @functools.lru_cache(maxsize=None)
 def model_version() -> str:
     """Short SHA-256 of the :data:`MODEL_MODULES` as they were on disk when this module was
-    first imported (with ``fabric_fenicsx.impact``; working-tree edits included), comments and
+    first imported (with ``fabric_fenicsx.impact.simulation``; working-tree edits included), comments and
     docstrings left out: editing them keeps stored runs."""
     h = hashlib.sha256()
-    for path in sorted({p for pattern in MODEL_MODULES for p in PACKAGE.glob(pattern)}):
+    paths = {p for pattern in MODEL_MODULES for p in PACKAGE.glob(pattern)}
+    for path in sorted(p for p in paths if p.relative_to(PACKAGE).as_posix() not in NOT_MODEL):
         h.update(path.relative_to(PACKAGE).as_posix().encode())
         h.update(code_without_prose(path.read_text()).encode())
     return h.hexdigest()[:12]

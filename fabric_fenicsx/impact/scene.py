@@ -140,7 +140,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "name": Key("zylon_as", choice(*FABRICS),
                     "built-in fabric: zylon_as = 500 denier PBO Zylon AS, Table 1"),
         "file": Key("", optional_text,
-                    "TOML fabric file (fabric_fenicsx.materials.Fabric.load) used instead of name; "
+                    "TOML fabric file (fabric_fenicsx.material.fabric.Fabric.load) used instead of name; "
                     "relative to the scene file"),
         "bending": Key("max", choice("max", "min"),
                        "bending stiffness bound of the built-in fabric (Table 1, Sec. 3.2)"),
@@ -154,9 +154,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
                       "surrogate is asked with alpha = 1 only"),
         "erosion_strain": Key(1.0, number(0.0, lo_open=True),
                               "Green strain of a yarn direction beyond which a cell is eroded "
-                              "(no longer a unit cell; see fabric_fenicsx.impact)"),
+                              "(no longer a unit cell; see docs/impact_model.md)"),
         "surrogate_cache": Key("", optional_text,
                                "directory of the surrogate's tile cache (\"\" = its default)"),
+    },
+    "membrane": {
+        "shear_modulus": Key(0.0, number(0.0, unit="N/m"),
+                             "isotropic in-plane shear stiffness G of the weak-form term "
+                             "fabric_fenicsx.fem.terms.IsotropicShear (0 = off: the thesis's membrane "
+                             "has none, Sec. 2.1)"),
     },
     "mesh": {
         "kind": Key("graded", choice("graded", "uniform"),
@@ -205,7 +211,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "dt_check_interval": Key(10, integer(1), "steps between re-checks of the stable time step"),
         "damping": Key(0.1, number(0.0, 1.0),
                        "stiffness-proportional damping as a fraction of critical at the highest mesh "
-                       "frequency of the straight intact yarns (0.1: see fabric_fenicsx.impact)"),
+                       "frequency of the straight intact yarns (0.1: see docs/impact_model.md)"),
         "release_time": Key(20.0e-6, number(0.0, lo_open=True, unit="s"),
                             "time without contact after which a perforation or rebound is final"),
         "max_steps": Key(0, integer(0), "stop after this many steps (0 = no limit)"),

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabric_fenicsx.fibril import ExponentialDamage, damage_law_from_dict
+from fabric_fenicsx.material.fibril import ExponentialDamage, damage_law_from_dict
 
 METRE_PER_INCH = 0.0254
 

@@ -14,7 +14,7 @@ over a long stretch: a snap), the yarn scans g on a grid below u and closes the 
 change. The yarns' coupling enters through target.
 
 The iteration is scalar code for one point (:func:`solve_point`), written so that numba can
-compile it unchanged: :mod:`fabric_fenicsx.damage_kernel` compiles it with the surrogate's
+compile it unchanged: :mod:`fabric_fenicsx.surrogate.kernels.damage` compiles it with the surrogate's
 target for the membrane's quadrature points; the unit cell (:func:`solve_damage`) runs the
 same code in Python around its own solves. The point's target comes from :func:`target`.
 """

@@ -21,7 +21,7 @@ are P_i = dPsi/dlambda_i = F_i / (2 w_j) (Eq. 2-31).
 
 Damage (Eq. 2-26/2-28, appendix A.1): A_i = alpha_i A_i^0, B_i = alpha_i B_i^0 with
 alpha_i = min(alpha_i^hist, alpha(mu_i^max)) solved by a bracketing iteration
-(:mod:`fabric_fenicsx.damage_solver`).
+(:mod:`fabric_fenicsx.material.damage_solver`).
 A yarn with alpha_i below ``ALPHA_BROKEN`` has failed completely and leaves the cell.
 """
 
@@ -34,8 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from fabric_fenicsx.damage_solver import DamageIterationError, solve_damage
-from fabric_fenicsx.materials import Fabric
+from fabric_fenicsx.material.damage_solver import DamageIterationError, solve_damage
+from fabric_fenicsx.material.fabric import Fabric
 
 ALPHA_BROKEN = 1e-6
 """A yarn whose alpha falls below this has failed completely: F_i = 0 and it leaves the
@@ -175,7 +175,7 @@ class UnitCell:
 
     Parameters
     ----------
-    fabric : the :class:`~fabric_fenicsx.materials.Fabric`.
+    fabric : the :class:`~fabric_fenicsx.material.fabric.Fabric`.
     n_elements : linear elements per half-yarn (default ``N_ELEMENTS_DEFAULT``).
     tol : Newton tolerance on the scaled residual (moments / (A^0 L), lengths / L).
     max_iter : Newton iterations per attempt.
@@ -217,7 +217,7 @@ class UnitCell:
         """Unit cell at (E1, E2) with damage evolving from ``alpha_hist`` (appendix A.1).
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max)) (Eq. 2-25/A.12) is solved for both yarns
-        by the bracketing iteration of :mod:`fabric_fenicsx.damage_solver`; the result's
+        by the bracketing iteration of :mod:`fabric_fenicsx.material.damage_solver`; the result's
         alpha1, alpha2 are the new
         history values. ``E2=None`` leaves the fill free (P2 = 0).
         """

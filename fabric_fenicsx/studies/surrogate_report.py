@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fabric_fenicsx.materials import Fabric
-from fabric_fenicsx.surrogate import Surrogate
-from fabric_fenicsx.unitcell import UnitCell
+from fabric_fenicsx.material.fabric import Fabric
+from fabric_fenicsx.surrogate.table import Surrogate
+from fabric_fenicsx.material.unitcell import UnitCell
 
 # (resolution, r_nodes, order): a ladder in h at cubic order, the default, and linear order.
 DEFAULT_LADDER = ((0.004, 6, 3), (0.002, 11, 3), (0.001, 21, 3), (0.002, 11, 1), (0.001, 11, 1))

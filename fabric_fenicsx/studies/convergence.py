@@ -16,19 +16,19 @@ whose ``summary.json`` (or recorded ``error.json``) exists with the same scene s
 run again, so an interrupted study resumes where it stopped.
 
 The pure helpers (observed order, Richardson extrapolation, the "cheapest within 2 %" rule)
-come first and import nothing heavy; DOLFINx is imported only when an impact run starts. The
-report (tables, plots, ``docs/convergence.md``) is written by
-:mod:`fabric_fenicsx.convergence_report`.
+come first and import nothing heavy; DOLFINx is imported only when an impact run starts. This
+module runs and analyses; the report (tables, plots, ``docs/convergence.md``) is written by
+:mod:`fabric_fenicsx.studies.convergence_report`, which imports this module's names, and the
+command (options, resuming, the order of the steps) is :mod:`fabric_fenicsx.cli.convergence`,
+which imports both.
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import datetime
 import json
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -183,7 +183,7 @@ def run_name(case: str, h_centre: float, dt_safety: float, perturbation: float =
 
 def scene_for(case: str, h_centre: float, dt_safety: float, scene_path: str = SCENE,
               perturbation: float = 0.0):
-    from fabric_fenicsx.scene import load_scene
+    from fabric_fenicsx.impact.scene import load_scene
     if case not in CASES:
         raise ValueError(f"unknown case {case!r}; valid: {list(CASES)}")
     v0 = CASES[case]["velocity"] * (1.0 + perturbation)
@@ -201,7 +201,7 @@ def _history_max_deflection(folder: Path) -> float:
 
 def _load_done(folder: Path, settings: dict) -> dict | None:
     """The recorded outcome of a finished run with the same settings and model version, else None."""
-    from fabric_fenicsx.provenance import load_if_same
+    from fabric_fenicsx.studies.provenance import load_if_same
     timing = folder / "timing.json"
     for name in ("summary.json", "error.json"):
         data = load_if_same(folder / name, settings)
@@ -229,7 +229,7 @@ class RunRecord:
         return math.nan if v is None else float(v)
 
 
-def _stored(case: str, h_centre: float, dt_safety: float, runs_dir: Path, perturbation: float = 0.0) -> bool:
+def is_stored(case: str, h_centre: float, dt_safety: float, runs_dir: Path, perturbation: float = 0.0) -> bool:
     """Whether this run is stored with the current settings and model version (reusable)."""
     settings = scene_for(case, h_centre, dt_safety, perturbation=perturbation).to_dict()
     return _load_done(runs_dir / run_name(case, h_centre, dt_safety, perturbation), settings) is not None
@@ -239,8 +239,8 @@ def run_one(case: str, h_centre: float, dt_safety: float, runs_dir: Path, rerun:
             log=print, perturbation: float = 0.0) -> RunRecord:
     """One impact run into its own folder, or its recorded outcome if it was run before with
     the same settings. Wall and CPU (process) time of the whole call are kept in timing.json."""
-    from fabric_fenicsx.impact import ImpactError, run_impact
-    from fabric_fenicsx.provenance import code_fingerprint
+    from fabric_fenicsx.impact.simulation import ImpactError, run_impact
+    from fabric_fenicsx.studies.provenance import code_fingerprint
 
     scene = scene_for(case, h_centre, dt_safety, perturbation=perturbation)
     settings = scene.to_dict()
@@ -313,8 +313,8 @@ def unitcell_study(ladder=UNITCELL_LADDER, reference: int = UNITCELL_REFERENCE,
     to |V_ref| when the reference cell is in contact, else the absolute V (N) (the exact V of
     a separated cell is zero).
     """
-    from fabric_fenicsx.materials import zylon_as
-    from fabric_fenicsx.unitcell import UnitCell
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.material.unitcell import UnitCell
     fabric = zylon_as()
     ns = sorted(set(int(n) for n in ladder) | {int(reference)})
     if min(ns) < 2:
@@ -483,199 +483,3 @@ def ensemble_recommendation(ensembles: dict, tol: float = 0.02, k: float = 2.0) 
         h_ok = h
     return {"h": h_ok, "distance": dist, "se": se, "verdict": verdict, "reference": ref,
             "finest": levels[-1]}
-
-
-# ============================================================================ command
-def _float_list(text: str) -> list[float]:
-    try:
-        vals = [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
-    if len(vals) < 1 or not all(v > 0 and math.isfinite(v) for v in vals):
-        raise argparse.ArgumentTypeError(f"expected positive numbers, got {text!r}")
-    return vals
-
-
-KNOBS = ("unitcell", "surrogate", "mesh", "dt", "scatter")
-
-
-def _knobs(text: str) -> list[str]:
-    k = [x.strip() for x in text.split(",") if x.strip()]
-    bad = sorted(set(k) - set(KNOBS))
-    if bad or not k:
-        raise argparse.ArgumentTypeError(f"unknown knob(s) {bad or text!r}; valid: {', '.join(KNOBS)}")
-    return k
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", help="folder of run folders, CSVs and plots (default docs/convergence; "
-                        "out/convergence-quick with --quick)")
-    parser.add_argument("--doc", help="report file (default docs/convergence.md; OUT/convergence.md with --quick)")
-    parser.add_argument("--only", type=_knobs, default=list(KNOBS),
-                        help=f"comma-separated knobs to compute (default all: {','.join(KNOBS)}); the report "
-                             "includes every knob whose results are already stored")
-    parser.add_argument("--levels", type=_float_list, help="mesh ladder of every case, h_centre in mm (default "
-                        + "; ".join(f"{c}: " + ",".join(f"{h:g}" for h in v) for c, v in MESH_LEVELS_MM.items())
-                        + ")")
-    parser.add_argument("--case-levels", type=_case_levels, action="append", default=[], metavar="CASE=H,H,H",
-                        help=f"mesh ladder of one case (cases: {', '.join(CASES)}), e.g. damaged=4,2,1; repeatable")
-    parser.add_argument("--safeties", type=_float_list, help="dt ladder, run.dt_safety values (default "
-                        + ",".join(f"{s:g}" for s in DT_SAFETIES) + ")")
-    parser.add_argument("--dt-mesh", type=_dt_mesh, action="append", default=[], metavar="[CASE=]H",
-                        help="h_centre (mm) of the dt ladder, of every case (H) or of one (CASE=H); repeatable "
-                        "(default " + ", ".join(f"{c}={h:g}" for c, h in DT_MESH_MM.items()) + ")")
-    parser.add_argument("--quick", action="store_true", help="tiny smoke version (coarse ladders), not a study")
-    parser.add_argument("--rerun", action="store_true",
-                        help="run every impact run and the unit-cell ladder again, even if stored")
-
-
-def _dt_mesh(text: str) -> tuple[str | None, float]:
-    case, sep, rest = text.rpartition("=")
-    if sep and case.strip() not in CASES:
-        raise argparse.ArgumentTypeError(f"expected H or CASE=H with CASE one of {list(CASES)}, got {text!r}")
-    try:
-        return (case.strip() or None), float(rest)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a mesh size in mm, got {rest!r}") from None
-
-
-def _case_levels(text: str) -> tuple[str, list[float]]:
-    case, sep, rest = text.partition("=")
-    if not sep or case.strip() not in CASES:
-        raise argparse.ArgumentTypeError(f"expected CASE=H,H,H with CASE one of {list(CASES)}, got {text!r}")
-    return case.strip(), _float_list(rest)
-
-
-def _check_ladders(levels: dict, safeties) -> None:
-    for case, lv in levels.items():
-        if len(set(lv)) < 3:
-            raise SystemExit(f"fabric-fenicsx convergence: the mesh ladder of {case} needs at least three levels")
-    if len(set(safeties)) < 3:
-        raise SystemExit("fabric-fenicsx convergence: the dt ladder needs at least three distinct levels")
-    if max(max(lv) for lv in levels.values()) > 8.0:
-        raise SystemExit("fabric-fenicsx convergence: h_centre above h_edge = 8 mm of the scene")
-    if max(safeties) > 1.0:
-        raise SystemExit("fabric-fenicsx convergence: dt_safety must lie in (0, 1]")
-
-
-def _load_unitcell(path: Path) -> dict | None:
-    if not path.is_file():
-        return None
-    with open(path) as f:
-        uc = json.load(f)
-    uc["states"] = [(E1, E2, tuple(a)) for E1, E2, a in uc["states"]]
-    return uc
-
-
-def _same_unitcell(uc: dict | None, ladder, reference: int, states) -> bool:
-    """Whether a stored unit-cell study has the same element counts, reference and states."""
-    if uc is None:
-        return False
-    ns = sorted({int(n) for n in ladder} | {int(reference)})
-    return (uc["reference"] == reference and sorted(s["n"] for s in uc["summary"]) == ns
-            and [(float(a), float(b), tuple(map(float, c))) for a, b, c in uc["states"]]
-            == [(float(a), float(b), tuple(map(float, c))) for a, b, c in states])
-
-
-def run(args: argparse.Namespace) -> int:
-    from fabric_fenicsx.convergence_report import (ladder_rows, plot_ladders, plot_unitcell, write_csv,
-                                                   write_report)
-
-    out = Path(args.out or ("out/convergence-quick" if args.quick else "docs/convergence"))
-    doc = Path(args.doc or (out / "convergence.md" if args.quick else "docs/convergence.md"))
-    if args.levels:
-        levels = {c: list(args.levels) for c in CASES}
-    elif args.quick:
-        levels = {c: [8.0, 5.66, 4.0] for c in CASES}
-    else:
-        levels = {c: list(v) for c, v in MESH_LEVELS_MM.items()}
-    levels.update(dict(args.case_levels))
-    safeties = args.safeties or ([0.8, 0.6, 0.4] if args.quick else list(DT_SAFETIES))
-    dt_mesh = dict(DT_MESH_MM) if not args.quick else {c: 8.0 for c in CASES}
-    for case, h in args.dt_mesh:
-        dt_mesh.update({case: h} if case else {c: h for c in CASES})
-    _check_ladders(levels, safeties)
-    out.mkdir(parents=True, exist_ok=True)
-    command = " ".join(["fabric-fenicsx convergence", *sys.argv[2:]]) if len(sys.argv) > 1 and \
-        sys.argv[1] == "convergence" else "fabric-fenicsx convergence"
-
-    def log(text: str) -> None:
-        print(f"{datetime.datetime.now():%H:%M:%S} {text}", flush=True)
-
-    # impact ladders: stored plan so that --only keeps the other knob's ladder in the report
-    plan_path = out / "plan.json"
-    stored = json.loads(plan_path.read_text()) if plan_path.is_file() else {}
-    if "mesh" in args.only:
-        stored["mesh"] = levels
-    if "dt" in args.only:
-        stored["dt"] = {"safeties": safeties, "mesh_mm": dt_mesh}
-    plan_path.write_text(json.dumps(stored, indent=1))
-    knobs = [k for k in ("mesh", "dt") if k in stored]
-    stored_dt_mesh = stored.get("dt", {}).get("mesh_mm", dt_mesh)
-    if not isinstance(stored_dt_mesh, dict):          # plan.json of a study before per-case meshes
-        stored_dt_mesh = {c: float(stored_dt_mesh) for c in CASES}
-    runs = plan(knobs, stored.get("mesh", []), stored.get("dt", {}).get("safeties", []), stored_dt_mesh)
-    todo = [r for r in runs if r[0] in args.only]
-    # runs of a knob not asked for are only read back (they must exist)
-    records = run_ladders(todo, out / "runs", rerun=args.rerun, log=log)
-    for knob, case, h, s in runs:
-        if knob not in args.only:
-            if _stored(case, h, s, out / "runs"):
-                records.append((knob, run_one(case, h, s, out / "runs", log=log)))
-            else:
-                log(f"  {run_name(case, h, s)}: not stored with this model version; left out (run --only {knob})")
-    ladders: dict[str, dict] = {}
-    for knob in knobs:
-        param = "h_centre" if knob == "mesh" else "dt_safety"
-        ladders[knob] = {}
-        for case in CASES:
-            recs = [r for k, r in records if k == knob and r.case == case]
-            if recs:
-                ladders[knob][case] = analyse_ladder(recs, param)
-        rows = [row for a in ladders[knob].values() for row in ladder_rows(a)]
-        if rows:
-            write_csv(out / f"{knob}.csv", rows)
-            label = ((lambda r: f"{r.h_centre * 1e3:.3g} mm") if knob == "mesh" else (lambda r: f"s={r.dt_safety:g}"))
-            plot_ladders(out / f"{knob}_error_vs_time.png", ladders[knob],
-                         "mesh h_centre" if knob == "mesh" else "dt_safety", label)
-    # unit cell (after the impact runs; the n = 768 reference solves take minutes): computed or reused
-    uc_path = out / "unitcell.json"
-    uc = _load_unitcell(uc_path)
-    if "unitcell" in args.only:
-        ladder = (4, 8, 16) if args.quick else UNITCELL_LADDER
-        reference = 64 if args.quick else UNITCELL_REFERENCE
-        if args.rerun or not _same_unitcell(uc, ladder, reference, UNITCELL_STATES):
-            log("unit cell ladder")
-            uc = unitcell_study(ladder, reference, log=log)
-            with open(uc_path, "w") as f:
-                json.dump(uc, f, indent=1)
-        else:
-            log(f"unit cell ladder: reused {uc_path} (same element counts and states)")
-        write_csv(out / "unitcell.csv", uc["rows"])
-        write_csv(out / "unitcell_summary.csv", uc["summary"])
-        plot_unitcell(out / "unitcell_error_vs_time.png", uc)
-
-    # run-to-run scatter of the damaged case: ensembles at the SCATTER_LEVELS_MM mesh levels
-    scatter: dict[float, list[RunRecord]] = {}
-    levels = [] if args.quick else SCATTER_LEVELS_MM
-    asked = "scatter" in args.only
-    for h in (x * 1e-3 for x in levels):
-        base = [r for k, r in records if k == "mesh" and r.case == "damaged" and math.isclose(r.h_centre, h)
-                and r.dt_safety == DEFAULT_SAFETY]
-        recs = [run_one("damaged", h, DEFAULT_SAFETY, out / "runs", rerun=args.rerun and asked, log=log,
-                        perturbation=p)
-                for p in SCATTER_PERTURBATIONS
-                if asked or _stored("damaged", h, DEFAULT_SAFETY, out / "runs", p)]
-        if recs and not base:
-            log(f"  scatter at {h * 1e3:.4g} mm: the unperturbed run is not in the mesh ladder; "
-                "the ensemble has only the perturbed runs")
-        if recs:
-            scatter[h] = base[:1] + recs
-            records += [("scatter", r) for r in recs]
-    unique = {r.folder: r for _, r in records}
-    study_time = {"n_runs": len(unique), "n_new": sum(r.new for r in unique.values()),
-                  "cpu_s": sum(r.get("cpu_s") for r in unique.values()),
-                  "wall_s": sum(r.get("wall_s") for r in unique.values())}
-    write_report(doc, out, command, uc, ladders, study_time, args.quick, scatter, stored_dt_mesh)
-    log(f"report written to {doc}")
-    return 0

@@ -2,7 +2,7 @@
 derivatives for the time-step check), and check the inputs in one pass.
 
 A table cell's interpolant is the polynomial sum_pq C_pq t1^p t2^q in the cell's local
-coordinates (:func:`fabric_fenicsx.interp.power_matrix`), stored flat, P x P coefficients per
+coordinates (:func:`fabric_fenicsx.surrogate.interp.power_matrix`), stored flat, P x P coefficients per
 row (row-major in (p, q); P = 4 cubic, P = 2 linear). Evaluating it per point is a gather of
 P^2 coefficients per quantity and a few multiply-adds; with numpy that needs (points x
 quantities x coefficients) temporaries and costs several times the arithmetic, so these are

@@ -35,14 +35,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _fabric(args):
-    from fabric_fenicsx.materials import Fabric, zylon_as
+    from fabric_fenicsx.material.fabric import Fabric, zylon_as
     return Fabric.load(args.fabric) if args.fabric else zylon_as(args.bending)
 
 
 def run(args) -> int:
     fabric = _fabric(args)
     if args.action == "build":
-        from fabric_fenicsx.surrogate import Surrogate
+        from fabric_fenicsx.surrogate.table import Surrogate
         layers = tuple(x.strip() for x in args.layers.split(",") if x.strip())
         bad = set(layers) - {"intact", "damaged"}
         if bad:
@@ -56,7 +56,7 @@ def run(args) -> int:
         return 0
     if not args.out:
         raise SystemExit("surrogate report needs --out DIR")
-    from fabric_fenicsx.surrogate_report import run_report
+    from fabric_fenicsx.studies.surrogate_report import run_report
     rows = run_report(fabric, args.out, n_states=args.states, seed=args.seed, workers=args.workers)
     print(f"report written to {args.out}/surrogate_report.md ({len(rows)} table settings)")
     return 0

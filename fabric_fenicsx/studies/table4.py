@@ -1,7 +1,7 @@
 """The thesis's Table 4 study: scene Y90 at the five impact velocities, against the thesis's
 simulation and the experiment (Boeing report), as quoted in the thesis.
 
-    .venv/bin/python -m fabric_fenicsx.table4 --out docs/impact [--runs out/table4] [--set section.key=value ...]
+    .venv/bin/python -m fabric_fenicsx.studies.table4 --out docs/impact [--runs out/table4] [--set section.key=value ...]
 
 Each velocity runs into its own folder under ``--runs`` (``v<V0>/summary.json``, ``history.csv``); a velocity
 whose summary already exists with the same settings and model version (``provenance``) is not run
@@ -37,9 +37,9 @@ COLUMNS = ("v0", "residual_velocity", "perforated", "absorbed_energy", "max_defl
 
 def run_study(scene_path: str, runs: Path, overrides: list[str], verbose: bool = True) -> list[dict]:
     """Run (or reuse) the five velocities; return one row per velocity."""
-    from fabric_fenicsx.impact import ImpactError, run_impact
-    from fabric_fenicsx.provenance import load_if_same
-    from fabric_fenicsx.scene import load_scene
+    from fabric_fenicsx.impact.simulation import ImpactError, run_impact
+    from fabric_fenicsx.studies.provenance import load_if_same
+    from fabric_fenicsx.impact.scene import load_scene
 
     rows = []
     for k, v0 in enumerate(VELOCITIES):

@@ -1,6 +1,7 @@
 """The report of ``fabric-fenicsx convergence``: CSV tables, log-log plots of error against
 run time and ``docs/convergence.md``, written from the runs and analyses of
-:mod:`fabric_fenicsx.convergence` (which calls :func:`write_report`)."""
+:mod:`fabric_fenicsx.studies.convergence` (imported here; it does not import this module). The
+command, :mod:`fabric_fenicsx.cli.convergence`, calls :func:`write_report`."""
 
 from __future__ import annotations
 
@@ -14,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fabric_fenicsx.convergence import (CASES, DEFAULT_SAFETY, DT_MESH_MM, ORDER_RANGE, QUANTITIES, SCENE,
+from fabric_fenicsx.studies.convergence import (CASES, DEFAULT_SAFETY, DT_MESH_MM, ORDER_RANGE, QUANTITIES, SCENE,
                                         RunRecord, ensemble_recommendation, recommend, scatter_spread)
-from fabric_fenicsx.provenance import git_head
+from fabric_fenicsx.studies.provenance import git_head
 
 
 def _fmt(x, spec: str = ".4g") -> str:
@@ -124,7 +125,7 @@ def unitcell_section(uc: dict, out: Path, doc: Path) -> list[str]:
          f"{len(uc['states'])} fixed states, against n = {ref}. Each solve is cold (a new cell, no warm "
          "start). Errors are relative to the reference value; V of a separated reference cell "
          "(V = 0) is compared as an absolute value in N. The default is n = 24 "
-         "(`fabric_fenicsx.unitcell.N_ELEMENTS_DEFAULT`).", ""]
+         "(`fabric_fenicsx.material.unitcell.N_ELEMENTS_DEFAULT`).", ""]
     rows = []
     for x in uc["rows"]:
         if x["n"] == ref:
@@ -287,7 +288,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
         L += ["**Quick smoke version (`--quick`): tiny ladders, not a convergence study.**", ""]
     L += ["Re-running the command reuses every impact run whose folder under "
           f"`{_rel(out / 'runs', doc)}` holds a `summary.json` (or a recorded `error.json`) with the same "
-          "scene settings and model version (`fabric_fenicsx.provenance`), and the stored unit-cell ladder (`unitcell.json`) if its element counts and "
+          "scene settings and model version (`fabric_fenicsx.studies.provenance`), and the stored unit-cell ladder (`unitcell.json`) if its element counts and "
           "states are the same; `--rerun` computes everything again. Tables as CSV: "
           f"`{_rel(out, doc)}/*.csv`.", ""]
     sections = []
@@ -328,7 +329,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
 
 def _code_note(recs) -> list[str]:
     """Which code the runs were made with: a run is reused only with the same settings and
-    model version (`fabric_fenicsx.provenance`), so a report normally shows one version."""
+    model version (`fabric_fenicsx.studies.provenance`), so a report normally shows one version."""
     versions: dict[str, list[str]] = {}
     for r in recs:
         versions.setdefault(r.values.get("model_version", "?"), []).append(Path(r.folder).name)

@@ -29,12 +29,15 @@ from typing import NamedTuple
 
 import numpy as np
 
-from fabric_fenicsx import damage_kernel, interp, interp_kernel
-from fabric_fenicsx.materials import Fabric
-from fabric_fenicsx.tiles import (QUANTITIES, Progress, cache_key, default_cache_dir, load_tile,
+from fabric_fenicsx.surrogate import interp
+from fabric_fenicsx.surrogate.kernels import damage as damage_kernel
+from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
+from fabric_fenicsx.material.contract import DamageState
+from fabric_fenicsx.material.fabric import Fabric
+from fabric_fenicsx.surrogate.tiles import (QUANTITIES, Progress, cache_key, default_cache_dir, load_tile,
                                   save_tile, solve_blocks)
-from fabric_fenicsx.damage_solver import CONVERGED, iteration_error
-from fabric_fenicsx.unitcell import ALPHA_BROKEN, UnitCell
+from fabric_fenicsx.material.damage_solver import CONVERGED, iteration_error
+from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell
 
 _Q = {name: k for k, name in enumerate(QUANTITIES)}
 WARP_WEAKER, FILL_WEAKER = 0, 1
@@ -460,8 +463,8 @@ class Surrogate:
         """Constitutive update: P1, P2 (N/m) and the new alpha1, alpha2 [, mu1, mu2].
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (Eq. 2-25, appendix A.1) is solved
-        per point by the unit cell's bracketing iteration (:mod:`fabric_fenicsx.damage_solver`,
-        compiled by :mod:`fabric_fenicsx.damage_kernel`). Points whose stretch leaves their
+        per point by the unit cell's bracketing iteration (:mod:`fabric_fenicsx.material.damage_solver`,
+        compiled by :mod:`fabric_fenicsx.surrogate.kernels.damage`). Points whose stretch leaves their
         damage unchanged (mu_i below mu_i^crit, or unloading) take no iteration.
         """
         E1, E2, a1h, a2h, shape = self._inputs(E1, E2, alpha1_hist, alpha2_hist,
@@ -512,6 +515,18 @@ class Surrogate:
         _, d1, d2 = self.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
         return tuple(x.reshape(shape) for x in lambda_tangent(E1, E2, d1, d2))
 
+    def constitutive_update(self, E1, E2, state):
+        """:class:`~fabric_fenicsx.material.contract.MaterialLaw`: (P1, P2, new DamageState),
+        tension-only P_i (Eq. 2-31) and alpha_i from Eq. 2-25, as :meth:`update`."""
+        P1, P2, a1, a2 = self.update(E1, E2, state.alpha1, state.alpha2)
+        return P1, P2, DamageState(a1, a2)
+
+    def wave_modulus(self, E1, E2, state):
+        """:class:`~fabric_fenicsx.material.contract.MaterialLaw`: per point the largest
+        eigenvalue (N/m) of the symmetric part of dP_i/dlambda_j at frozen damage (the unit
+        cell's signed tangent; the membrane's own rules are in ``fem.yarn_stress``)."""
+        return symmetric_eigmax(*self.tangent(E1, E2, state.alpha1, state.alpha2))
+
     def respond(self, E1: float, E2: float, alpha_hist=(1.0, 1.0)):
         """A material-point result like :meth:`UnitCell.respond` (signed P, for static scenes)."""
         P1, P2, a1, a2, mu1, mu2 = self.update(E1, E2, alpha_hist[0], alpha_hist[1], return_mu=True,
@@ -535,6 +550,13 @@ def lambda_tangent(E1, E2, dE1, dE2):
     of :meth:`Surrogate.lookup`'s derivatives ``dE1``, ``dE2``: (dP1/dl1, dP1/dl2, dP2/dl1, dP2/dl2)."""
     l1, l2 = np.sqrt(1 + 2 * E1), np.sqrt(1 + 2 * E2)
     return dE1[:, 0] * l1, dE2[:, 0] * l2, dE1[:, 1] * l1, dE2[:, 1] * l2
+
+
+def symmetric_eigmax(t11, t12, t21, t22):
+    """Largest eigenvalue of the symmetric part of the 2 x 2 tangent [[t11, t12], [t21, t22]]
+    per point: the wave modulus (N/m) of a tangent dP_i/dlambda_j."""
+    b = 0.5 * (t12 + t21)
+    return 0.5 * (t11 + t22) + np.sqrt(0.25 * (t11 - t22) ** 2 + b * b)
 
 
 def material_point(fabric: Fabric, **settings) -> Surrogate:

@@ -13,10 +13,10 @@ import sys
 # subcommand -> (module, help); each module offers add_arguments(parser) and run(args) and
 # imports nothing heavy (DOLFINx) at module level.
 SUBCOMMANDS = {
-    "static": ("fabric_fenicsx.static", "static material-point scenes (thesis figures 3-1 to 3-6)"),
-    "surrogate": ("fabric_fenicsx.surrogate_cli", "build or report the unit-cell surrogate"),
-    "impact": ("fabric_fenicsx.impact_cli", "ballistic impact of a fabric ply (thesis chapter 4)"),
-    "convergence": ("fabric_fenicsx.convergence",
+    "static": ("fabric_fenicsx.cli.static", "static material-point scenes (thesis figures 3-1 to 3-6)"),
+    "surrogate": ("fabric_fenicsx.cli.surrogate", "build or report the unit-cell surrogate"),
+    "impact": ("fabric_fenicsx.cli.impact", "ballistic impact of a fabric ply (thesis chapter 4)"),
+    "convergence": ("fabric_fenicsx.cli.convergence",
                     "error against run time of each discretisation knob (writes docs/convergence.md)"),
 }
 

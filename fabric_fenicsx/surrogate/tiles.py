@@ -80,8 +80,8 @@ _WORKER_CELL = None
 
 def _worker_init(fabric_dict: dict, n_elements: int) -> None:
     global _WORKER_CELL
-    from fabric_fenicsx.materials import Fabric
-    from fabric_fenicsx.unitcell import UnitCell
+    from fabric_fenicsx.material.fabric import Fabric
+    from fabric_fenicsx.material.unitcell import UnitCell
     _WORKER_CELL = UnitCell(Fabric.from_dict(fabric_dict), n_elements=n_elements)
 
 

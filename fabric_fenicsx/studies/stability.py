@@ -1,4 +1,4 @@
-"""``python -m fabric_fenicsx.stability``: the impact driver on stiff and extreme cases (issue 4).
+"""``python -m fabric_fenicsx.studies.stability``: the impact driver on stiff and extreme cases (issue 4).
 
 Each case is the Y90 scene (``demos/scenes/y90.toml``) on a coarse mesh with a short time
 limit (:data:`BASE_OVERRIDES`), changed in one respect: the fabric's bending or stretch
@@ -6,7 +6,7 @@ stiffness, its crimp, the projectile's velocity, friction or edge, the material 
 impact point, the mesh, the damage switch or the projectile's size (:data:`CASES`). A case
 whose fabric differs writes that fabric as TOML into its run folder and passes it with
 ``fabric.file``. The cases run one after the other, serially, on one rank, as
-:func:`fabric_fenicsx.impact.run_impact` does (:func:`run_simulation`), keeping the
+:func:`fabric_fenicsx.impact.simulation.run_impact` does (:func:`run_simulation`), keeping the
 simulation so that its live cells can be split into connected pieces at the end
 (:func:`free_fragments`: a piece holding no clamped node is a fragment cut loose).
 
@@ -16,7 +16,7 @@ Outcome of a case:
   residual velocity, energy-balance error, steps, removed cells and the strain evaluations
   beyond the surrogate's table are recorded, and its ``history.csv`` is checked for NaN, a
   kinetic energy above the impact energy and an energy error above 5 %;
-* ``stopped``: an :class:`fabric_fenicsx.impact.ImpactError`; its message is recorded and
+* ``stopped``: an :class:`fabric_fenicsx.impact.simulation.ImpactError`; its message is recorded and
   checked for the step, time and place the guards promise;
 * ``failed``: any other exception (scene, unit cell, surrogate, ...), before or during the
   run: its type and message are recorded; whether that message is clear is a finding.
@@ -24,7 +24,9 @@ Outcome of a case:
 A case whose ``result.json`` exists with the same settings is not run again (``--rerun``
 forces it), so an interrupted study resumes where it stopped. The study writes
 ``OUT/stability.csv`` (copied next to the plots), the plots in ``docs/stability/`` and the
-report ``--doc`` (default ``docs/stability.md``).
+report ``--doc`` (default ``docs/stability.md``), whose hand-written prose (the reading of each
+case and the notes on the findings) is read from ``docs/stability/discussion.md``
+(:data:`PROSE_FILE`).
 
 Nothing heavy is imported at module level: DOLFINx is loaded when the first case runs.
 """
@@ -48,12 +50,12 @@ from pathlib import Path
 
 import numpy as np
 
-from fabric_fenicsx.provenance import code_fingerprint, load_if_same
+from fabric_fenicsx.studies.provenance import code_fingerprint, load_if_same
 
 __all__ = ["Case", "CASES", "BASE_SCENE", "BASE_OVERRIDES", "ENERGY_LIMIT", "scaled_stiffness",
            "with_crimp", "make_fabric", "case_settings", "run_case", "assess", "run_study",
-           "write_csv", "plot_histories", "write_report", "main", "run_simulation", "free_fragments",
-           "parse_stop_message"]
+           "write_csv", "plot_histories", "read_prose", "write_report", "main", "run_simulation",
+           "free_fragments", "parse_stop_message"]
 
 # ============================================================================ the cases
 BASE_SCENE = "demos/scenes/y90.toml"
@@ -67,7 +69,7 @@ BASE_OVERRIDES = (
 )
 """Coarse, short version of the Y90 scene every case starts from."""
 
-CANONICAL_COMMAND = (".venv/bin/python -m fabric_fenicsx.stability --out out/stability "
+CANONICAL_COMMAND = (".venv/bin/python -m fabric_fenicsx.studies.stability --out out/stability "
                      "--doc docs/stability.md --rerun")
 """The command that runs the whole study from scratch and writes docs/stability.md."""
 
@@ -186,7 +188,7 @@ def with_crimp(fabric, crimp: float):
 def make_fabric(spec: tuple[str, float], bending_bound: str = "max"):
     """The fabric of a case: ``("bending" | "stretch", factor)`` or ``("crimp", crimp)``
     applied to the built-in Zylon AS (Table 1) with the scene's bending bound."""
-    from fabric_fenicsx.materials import zylon_as
+    from fabric_fenicsx.material.fabric import zylon_as
 
     kind, value = spec
     base = zylon_as(bending=bending_bound)
@@ -256,8 +258,8 @@ def run_case(case: Case, folder: Path, base_scene: str = BASE_SCENE,
              base_overrides: tuple[str, ...] = BASE_OVERRIDES) -> dict:
     """Run one case in ``folder`` and return its outcome record (also ``folder/result.json``).
     Every exception except KeyboardInterrupt is an outcome, not an error of the study."""
-    from fabric_fenicsx.impact import ImpactError
-    from fabric_fenicsx.scene import load_scene
+    from fabric_fenicsx.impact.simulation import ImpactError
+    from fabric_fenicsx.impact.scene import load_scene
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -303,11 +305,11 @@ def run_case(case: Case, folder: Path, base_scene: str = BASE_SCENE,
 
 
 def run_simulation(scene, folder: Path, keep: dict) -> dict:
-    """:func:`fabric_fenicsx.impact.run_impact` on one rank, verbose off, with the simulation
+    """:func:`fabric_fenicsx.impact.simulation.run_impact` on one rank, verbose off, with the simulation
     left in ``keep["sim"]`` (also when it raises) for :func:`free_fragments`."""
     from mpi4py import MPI
 
-    from fabric_fenicsx.impact import ImpactSimulation
+    from fabric_fenicsx.impact.simulation import ImpactSimulation
 
     sim = ImpactSimulation(scene, folder, MPI.COMM_SELF, verbose=False)
     keep["sim"] = sim
@@ -681,109 +683,52 @@ VERDICT_NOTES = {"v1000": "finding 1, fixed", "friction-0": "an earlier run: fin
                  "beyond-table": "finding 3, fixed"}
 """Hand-written pointers from the table's verdict column to the findings below it."""
 
-DISCUSSION: dict[str, str] = {
-    "fillet-0":
-        "The reference. Its largest energy error (0.042 %) is reached in the first steps of "
-        "contact: the rows of history.csv, one per microsecond, stay near 1e-5 after that, and "
-        "friction-0, friction-2 and angle-30 share the same maximum, so it is set before these "
-        "cases differ.",
-    "bending-x10":
-        "A stiffer crimp interchange: the initial wave modulus is higher, so dt starts about 23 % "
-        "lower than the base's (2.505e-7 against 3.233e-7 s); the stiffer crimped phase brings "
-        "damage earlier (0.342 against 0.485 ms) at a smaller deflection and slows the "
-        "projectile more by 0.6 ms. Nothing unstable.",
-    "bending-div10":
-        "The opposite: a soft start (dt 4.887e-7 s at first, lowered 31 times as the crimp is "
-        "pulled out) and later damage (0.572 ms). Clean.",
-    "stretch-x10":
-        "A0 x 10 makes the straight yarn 10 x stiffer: the final dt is 3.0 x smaller than the "
-        "base's (6.655e-8 against 2.016e-7 s; sqrt(10) = 3.16 for the wave speed alone) and the "
-        "run takes 8465 steps instead of 2956. The same deflection needs less yarn stretch, so "
-        "no yarn is damaged within 0.6 ms. The time-step control follows the stiffer material; "
-        "the energy error stays at the base's level.",
-    "crimp-0":
-        "The degenerate unit cell (flat yarns: no height, no contact force) is accepted and "
-        "solved: the surrogate tabulated it like any other fabric, without an error or a "
-        "warning. With no crimp to pull out, the fabric is at its straight-yarn stiffness from "
-        "the first step: dt stays at its first value (2.019e-7 s), damage starts at 0.147 ms "
-        "(about a third of the base's time) and 31 cells are eroded by 0.6 ms. No NaN, no stop: "
-        "a crimp-free fabric is a valid, if extreme, input.",
-    "crimp-10":
-        "10 % crimp (Phi_L = 0.6101 rad for both yarns; areal density 0.1707 against 0.1581 "
-        "kg/m^2): a long de-crimping phase makes the fabric soft, dt starts at 7.202e-7 s and "
-        "is lowered 36 times as the yarns straighten, no yarn is damaged within 0.6 ms and the "
-        "projectile keeps the highest velocity of the 0.6 ms runs at 57.3 m/s. Clean.",
-    "v300":
-        "Damage starts a few microseconds after contact and the projectile cuts a plug that "
-        "rides on with it (the paragraph above gives its size and velocity). Since finding 1 was "
-        "fixed, the nodes of a piece no longer connected to a clamped edge neither keep a "
-        "perforation from ending the run nor count as fabric in the projectile's path: the run "
-        "ends as `perforated` once the attached fabric has been out of contact for "
-        "run.release_time.",
-    "v1000":
-        "The projectile punches a plug out within the first microseconds. Before finding 1 was "
-        "fixed, the plug, flying ahead of the projectile, kept the end test's count of live "
-        "nodes in the projectile's path above 0, and at 0.247 ms, having travelled more than "
-        "mesh.side, it tripped the displacement criterion of the blow-up guard, whose message "
-        "misnamed a perforation as a blow-up. Now the plug is recognised as cut loose and the "
-        "run ends as a perforation.",
-    "friction-0":
-        "Frictionless contact: damage starts a little earlier (0.452 against 0.485 ms); "
-        "otherwise like the base. (Before the wave-modulus bound of `YarnStress.wave_modulus`, "
-        "at dt_safety 0.8, dt fell to 1.454e-7 s here against the base's 2.016e-7 s, and to "
-        "1.842e-7 and 1.828e-7 s in angle-30 and large-damage; now, also at dt_safety 0.8, it "
-        "ends at 2.02e-7 s, the base's 2.016e-7 s, and no damaged case on the centred mesh "
-        "ends below 1.989e-7 s (bending-div10; edge-20mm, another mesh: 1.976e-7 s).) An "
-        "earlier run of this case, with the "
-        "working-tree damage iteration being edited before commit ee18cae, stopped with a "
-        "SurrogateError outside the impact guards (**finding 2**, fixed: such errors now stop "
-        "the run through the guards, with step, time and place).",
-    "friction-2":
-        "Friction 0, 0.5 and 2.0 give residual velocities within 0.011 m/s of each other at "
-        "0.6 ms (52.014, 52.003, 52.014 m/s): before the yarns break, the friction coefficient "
-        "hardly matters under the flat face. Clean.",
-    "angle-30":
-        "Yarns at 30 degrees to the clamped edges: damage starts at 0.343 ms, 17 cells are "
-        "eroded, and the fabric absorbs 18.0 J by 0.6 ms, the most of the 57.3 m/s cases "
-        "(next: bending-x10, 15.4 J). Clean.",
-    "edge-20mm":
-        "The short yarns between the projectile and the clamped edge strain fast: damage starts "
-        "at 0.087 ms at 4.8 mm deflection and 27 cells are eroded; the fabric stays in one "
-        "piece. Live cells are compressed to E = -0.499 (a cell almost collapsed along one "
-        "yarn, where the tension-only membrane has no stiffness): E = -0.5 exactly would make "
-        "the surrogate raise a ValueError, which the driver turns into an ImpactError; not "
-        "reached here. Clean.",
-    "refined-4x":
-        "4208 cells; dt is 4.4 x smaller than the base's at the start (7.351e-8 against "
-        "3.233e-7 s) and the run takes 6492 steps for 0.3 ms (30 s CPU, the most of the cases "
-        "whose tiles were cached); the energy error is at the coarse mesh's level. No damage "
-        "by 0.3 ms. Clean.",
-    "beyond-table":
-        "With damage off nothing breaks, so at 300 m/s the yarns are stretched past the "
-        "table's upper end: 2974461 point evaluations beyond it. The lookup clips at the end, "
-        "a constant stress with no stiffness beyond it, which the unit cell does not have "
-        "(its yarns would have failed). The run is numerically sound (0.055 % energy error, "
-        "all finite), and the fabric, holding that stress, throws the projectile back at "
-        "135 m/s. The run says so (finding 3, fixed): a warning at the end names the number of "
-        "evaluations beyond the table and the largest strains, and the summary's surrogate "
-        "range reports the strains seen.",
-    "large-damage":
-        "A 100 mm projectile at 300 m/s: damage from 0.011 ms and cells removed over a wide "
-        "zone, by erosion (a yarn Green strain above material.erosion_strain = 1.0) rather "
-        "than by deletion (both yarns broken at all four points): 149 eroded, none deleted. "
-        "The removal cuts out a plug of several hundred cells that rides on with the "
-        "projectile (the paragraph above gives its size and velocity); with finding 1 fixed "
-        "the run ends as a perforation. The energy error rises to 0.83 %, the largest of all "
-        "cases but 6 x below the limit.",
-}
-"""Hand-written reading of each case, from the study's results (numbers as in the table)."""
+PROSE_FILE = Path(__file__).resolve().parents[2] / "docs" / "stability" / "discussion.md"
+"""The report's hand-written prose: a ``## <case name>`` section reading each case (numbers as
+in the table) and a ``## Findings`` section (what code change would fix each finding)."""
+
+FINDINGS = "Findings"
+"""Heading of the prose's findings section."""
+
+
+def _markdown_sections(path: Path) -> dict[str, str]:
+    """The ``## `` sections of a markdown file: heading -> its text, line for line, without the
+    blank lines around it. Text before the first section is left out; ``###`` headings belong
+    to the text of their section."""
+    sections: dict[str, list[str]] = {}
+    body = None
+    for line in Path(path).read_text().splitlines():
+        if line.startswith("## "):
+            heading = line[3:].strip()
+            if heading in sections:
+                raise ValueError(f"{path}: section '## {heading}' appears twice")
+            body = sections[heading] = []
+        elif body is not None:
+            body.append(line)
+    return {heading: "\n".join(lines).strip("\n") for heading, lines in sections.items()}
+
+
+def read_prose(path: Path = PROSE_FILE) -> tuple[dict[str, str], str]:
+    """The report's hand-written prose (:data:`PROSE_FILE`): the reading of each case, by case
+    name, and the findings' notes. A section named neither after a case nor ``Findings`` is an
+    error (a misspelt case name would silently lose its reading)."""
+    sections = _markdown_sections(path)
+    if FINDINGS not in sections:
+        raise ValueError(f"{path}: no '## {FINDINGS}' section")
+    findings = sections.pop(FINDINGS)
+    unknown = sorted(set(sections) - {c.name for c in CASES})
+    if unknown:
+        raise ValueError(f"{path}: section(s) {unknown} name no case; valid: "
+                         f"{', '.join(c.name for c in CASES)}, {FINDINGS}")
+    return sections, findings
 
 
 def write_report(doc: Path, out: Path, records: list[dict], cases, command: str, plots: list[Path],
-                 csv_copy: Path) -> None:
+                 csv_copy: Path, prose: Path = PROSE_FILE) -> None:
     """The markdown report: command, date, base settings, outcome table, per-case paragraphs,
-    findings and plots."""
+    findings and plots; the hand-written parts come from ``prose`` (:func:`read_prose`)."""
     doc = Path(doc)
+    discussion, notes = read_prose(prose)
     by_name = {c.name: c for c in cases}
     total_cpu = sum(r["cpu_time_s"] for r in records)
     total_wall = sum(r["wall_time_s"] for r in records)
@@ -862,8 +807,8 @@ def write_report(doc: Path, out: Path, records: list[dict], cases, command: str,
         if case is not None:
             lines += [f"*Probes*: {case.purpose}. *Overrides*: {_settings_text(case, rec)}.", ""]
         lines += [_facts(rec), ""]
-        if rec["name"] in DISCUSSION:
-            lines += [DISCUSSION[rec["name"]], ""]
+        if rec["name"] in discussion:
+            lines += [discussion[rec["name"]], ""]
     lines += ["## Findings", "",
               "Flagged by the study's own checks (NaN, energy error above 5 % without a stop, kinetic "
               "energy above 1.2 KE_0, a stop message without step/time/place, an exception outside "
@@ -873,8 +818,7 @@ def write_report(doc: Path, out: Path, records: list[dict], cases, command: str,
             lines.append(f"* **{r['name']}**: " + "; ".join(r["assessment"]["problems"]))
     else:
         lines.append("* none.")
-    lines += [""]
-    lines += FINDINGS_TEXT
+    lines += ["", notes, ""]
     lines += ["## Tests", "",
               "`tests/test_stability.py` runs the fast cases on the study's coarse graded mesh, "
               "cut short (t_end 0.1-0.15 ms, or run.max_steps), plus v1000 as it is, and asserts "
@@ -885,62 +829,6 @@ def write_report(doc: Path, out: Path, records: list[dict], cases, command: str,
               "only.", ""]
     doc.parent.mkdir(parents=True, exist_ok=True)
     doc.write_text("\n".join(lines))
-
-
-FINDINGS_TEXT: list[str] = [
-    "### Code changes these findings called for (all three made in `fabric_fenicsx/impact.py`, "
-    "commit \"Impact: pieces cut loose from the clamped edges ...\"; the table above is from "
-    "the fixed code)",
-    "",
-    "1. **A fragment cut loose is taken for a blow-up, and a perforation by plugging is not "
-    "recognised** (v1000; also the plugs of v300 and large-damage). In "
-    "`fabric_fenicsx/impact.py`, `ImpactSimulation.run`, the end test counts as `front` every "
-    "live node inside the projectile's radius below its back face, and the blow-up test "
-    "compares the largest displacement of the live nodes (`gmax[2]`) with `mesh.side`; both "
-    "include the nodes of live cells that are no longer connected to the clamped fabric. "
-    "Fix: whenever cells are removed (where `_update_live_nodes` ran; now `_update_removed_cells`), label the connected "
-    "pieces of live cells (cells sharing nodes; in parallel by repeating a min-label exchange "
-    "through a P1/DG0 function's `scatter_forward` until no label changes, or by gathering "
-    "the small cell graph on rank 0) and mark the nodes of pieces holding no clamped dof as "
-    "free. Then (a) leave free nodes out of `front` and out of the displacement criterion, so "
-    "that a plug ends the run as `perforated` (report the fragments in the summary: count, "
-    "cells, momentum), and (b) let the blow-up message name the criterion that tripped (e.g. "
-    "\"largest displacement 0.2732 m > mesh.side = 0.27305 m\") and propose the dt/damping/"
-    "penalty/mesh fixes only for the kinetic-energy and negative-work criteria. "
-    "`fabric_fenicsx.stability.free_fragments` is a serial version of the labelling.",
-    "",
-    "2. **Exceptions from the surrogate escape the impact guards.** `ImpactSimulation.run` "
-    "turns only `FloatingPointError` and `ValueError` from `cd.step` into an `ImpactError`. "
-    "A `SurrogateError` (damage iteration not converged), or a `UnitCellError` from a table "
-    "tile solved during a lookup, leaves `run_impact` as it is: no step, time or place, the "
-    "point index it names is an index into the points being iterated (not a mesh point), and "
-    "its advice (\"Refine the table (resolution, r_nodes) or loosen the update's tol\") names "
-    "no scene key. Seen in friction-0, run with the working-tree `damage_solver.py` of 06:18 "
-    "(mid-edit, just before commit ee18cae added the `accept` threshold; the case completes "
-    "since): `SurrogateError: surrogate damage iteration did not converge for 1 point(s); "
-    "first: point 0, alpha_hist=(2.7870785323516492e-05, 1.0), last "
-    "alpha=(2.7870505179994227e-05, 0.9999999999417923), alpha - target(alpha) = "
-    "(-2.801435222647285e-10, -5.820766091346741e-11); strains there E1 = 0.0883772386136753, "
-    "E2 = -0.05713769164647131. Refine the table (resolution, r_nodes) or loosen the "
-    "update's tol.` at t = 0.539 ms (last history row). Fix: add "
-    "`fabric_fenicsx.surrogate.SurrogateError` and `fabric_fenicsx.unitcell.UnitCellError` "
-    "to the `except` around `cd.step(dt, f_ext)` in `ImpactSimulation.run`, and wrap the "
-    "`mat.wave_modulus(...)` call of the dt check (it also looks up, and may solve, tiles) "
-    "the same way, so that both end in `self._trouble(step, t_n, ...)`.",
-    "",
-    "3. **Damage off: strains beyond the table are silent.** `YarnStress._intact` clips the "
-    "strains to the table and counts them (`points_beyond_table_damage_off`, 2974461 in "
-    "beyond-table when found), but nothing is printed, and `summary[\"surrogate\"][\"range\"]` reads "
-    "\"0 point evaluations, strains seen E1 in [inf, -inf]\" because `_intact` calls "
-    "`Surrogate.lookup`, which bypasses `Surrogate._inputs` and its `RangeStats`. Fix: in "
-    "`YarnStress._intact` record the points, the strain range and the points beyond the "
-    "table in `self.sur.stats` (or track the largest E1, E2 and report them in "
-    "`summary[\"surrogate\"]`), and let the final line of the run (`_finish`) warn when "
-    "`points_beyond_table_damage_off > 0` (the stress there is the table's end value, a "
-    "plateau, not the unit cell's).",
-    "",
-]
-"""Hand-written notes on the findings: what code change would fix each."""
 
 
 # ============================================================================ command line
@@ -985,7 +873,7 @@ def run(args: argparse.Namespace) -> int:
     plots = plot_histories(records, out, plot_dir)
     csv_copy = plot_dir / "stability.csv"
     shutil.copyfile(out / "stability.csv", csv_copy)
-    command = (f".venv/bin/python -m fabric_fenicsx.stability --out {args.out} --doc {args.doc}"
+    command = (f".venv/bin/python -m fabric_fenicsx.studies.stability --out {args.out} --doc {args.doc}"
                + (f" --only {','.join(args.only)}" if args.only else "") + (" --rerun" if args.rerun else ""))
     write_report(doc, out, records, CASES, command, plots, csv_copy)
     print(f"stability: {len(records)} case(s) in {doc} and {out / 'stability.csv'}", flush=True)
@@ -993,7 +881,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m fabric_fenicsx.stability",
+    parser = argparse.ArgumentParser(prog="python -m fabric_fenicsx.studies.stability",
                                      description="Impact runs on stiff and extreme cases (issue 4).")
     add_arguments(parser)
     return run(parser.parse_args(argv))

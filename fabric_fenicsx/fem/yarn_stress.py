@@ -1,0 +1,249 @@
+"""The unit-cell surrogate at the membrane's quadrature points: the quadrature-point adapter.
+
+:class:`YarnStress` is the :class:`~fabric_fenicsx.material.contract.QuadratureMaterial` of an
+impact run. It keeps the damage history of every owned quadrature point (alpha1, alpha2,
+Eq. 2-25) and turns the yarn strains of a step into the yarn stresses the membrane integrates:
+the surrogate's P_i (Eq. 2-31) under the membrane's tension-only and slack (wrinkling) rules, plus
+a stiffness-proportional viscous stress; it books the energy released by damage, the viscous
+work and the energy of removed points, and gives the wave modulus that sets the stable time step.
+The modelling choices behind each rule are in docs/impact.md.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fabric_fenicsx.material.contract import DamageState
+from fabric_fenicsx.material.fabric import Fabric
+from fabric_fenicsx.surrogate.kernels import yarn_stress as yarn_stress_kernel
+from fabric_fenicsx.surrogate.table import lambda_tangent, symmetric_eigmax
+
+__all__ = ["YarnStress", "straight_yarn_modulus", "WAVE_MODULUS_MARGIN"]
+
+WAVE_MODULUS_MARGIN = 1.05
+"""Bound of the wave modulus per point, in units of max(alpha1, alpha2) x the straight intact
+yarn's modulus: over the default table (401 x 401 strain states at alpha 1, 0.5, 0.1, 0.01) the
+largest eigenvalue of the interpolated tangent is 1.028 of it at every state the membrane can
+reach, except on the jumps of the unit cell's compressive branch (10.4 x at alpha1 = 0.01,
+E2 = -0.054), where the slope is that of the interpolant across a jump, not a wave speed."""
+
+
+_PATH_S, _PATH_W = np.polynomial.legendre.leggauss(6)
+_PATH_S, _PATH_W = 0.5 * (_PATH_S + 1.0), 0.5 * _PATH_W  # on [0, 1]: YarnStress.path_energy
+
+
+def straight_yarn_modulus(fabric: Fabric) -> float:
+    """Largest dP_i/dlambda_i (N/m) of a straight intact yarn, A_i w_i / (L_i 2 w_j) (Eq. 2-31
+    with F_i = A_i (mu_i - 1), mu_i = lambda_i w_i / L_i once the crimp is pulled out)."""
+    w = (fabric.warp.w, fabric.fill.w)
+    return max(fabric.warp.A0 * w[0] / (fabric.warp.L * 2 * w[1]),
+               fabric.fill.A0 * w[1] / (fabric.fill.L * 2 * w[0]))
+
+
+class YarnStress:
+    """The surrogate at the live quadrature points, with damage-scaled stiffness-proportional
+    damping: the :class:`~fabric_fenicsx.material.contract.QuadratureMaterial` that
+    ``CentralDifference`` calls (``update``, ``state``, ``max_wave_modulus``, ``remove``).
+
+    surrogate: a :class:`fabric_fenicsx.surrogate.table.Surrogate`; weights: reference area dA of
+    each point (m^2); damage: evolve alpha (Eq. 2-25) or keep alpha = 1 and ask the
+    surrogate's intact layer only; beta: damping coefficient (s). Set ``dt_prev`` (the last
+    step) before each ``CentralDifference.step``.
+
+    Local (this rank) accumulators, J: ``viscous_dissipation``, ``damage_dissipation``,
+    ``erosion_energy``. ``beyond_table``: point evaluations with a strain above the table
+    (damage off only; with damage on such a yarn is broken). ``modulus_bounded``: point
+    evaluations of :meth:`wave_modulus` whose tangent exceeded the bound and was cut to it.
+    straight_modulus: the straight intact yarn's dP/dlambda (N/m), default from the fabric.
+    """
+
+    def __init__(self, surrogate, weights: np.ndarray, damage: bool, beta: float = 0.0,
+                 straight_modulus: float | None = None):
+        self.sur = surrogate
+        self.k_straight = float(straight_yarn_modulus(surrogate.fabric) if straight_modulus is None
+                                else straight_modulus)
+        self.modulus_bounded = 0
+        self.w = np.asarray(weights, dtype=float)
+        n = self.w.size
+        self.damage = bool(damage)
+        self.beta = float(beta)
+        self.dt_prev = 0.0
+        self.live = np.ones(n, dtype=bool)
+        self._idx = np.arange(n)
+        self._sel = slice(None)
+        self.E1, self.E2 = np.zeros(n), np.zeros(n)
+        self.E1_prev, self.E2_prev = self.E1, self.E2
+        self.lam = np.ones((2, n))
+        self.P_el = np.zeros((2, n))
+        self.P_v = np.zeros((2, n))
+        self.alpha1, self.alpha2 = np.ones(n), np.ones(n)
+        self.viscous_dissipation = 0.0
+        self.damage_dissipation = 0.0
+        self.erosion_energy = 0.0
+        self.beyond_table = 0
+        self.below_table = 0
+        self.slack_tension = 0
+        self.E_lo, self.E_hi = surrogate.E_table
+
+    # ------------------------------------------------------------------ surrogate access
+    def _clip(self, E: np.ndarray) -> np.ndarray:
+        return np.clip(E, self.E_lo, self.E_hi)
+
+    def _intact(self, E1, E2):
+        """P1, P2 of intact yarns (alpha = 1: the surrogate's intact layer only), tension-only."""
+        self.beyond_table += int(np.count_nonzero((E1 > self.E_hi) | (E2 > self.E_hi)))
+        self.sur.stats.record(E1, E2)
+        one = np.ones(E1.size)
+        vals = self.sur.lookup(self._clip(E1), self._clip(E2), one, one, ("P1", "P2"))
+        return np.maximum(vals[:, 0], 0.0), np.maximum(vals[:, 1], 0.0)
+
+    def slack(self, E1, E2) -> tuple[np.ndarray, np.ndarray]:
+        """Masks of the yarns that cannot carry tension (wrinkled, P_i = 0): compressed below
+        the table's lower end, or compressed while the other yarn is not stretched (only a
+        stretched crossing yarn keeps a compressed one taut, by crimp interchange)."""
+        slack1, slack2 = np.empty(E1.size, bool), np.empty(E1.size, bool)
+        yarn_stress_kernel.slack(E1, E2, self.E_lo, slack1, slack2)
+        return slack1, slack2
+
+    def _frozen_P(self, E1, E2, a1, a2):
+        """P1, P2 at frozen damage with the slack rule of :meth:`update`."""
+        if self.damage:
+            P1, P2, _, _ = self.sur.evaluate(E1, E2, a1, a2)
+        else:
+            P1, P2 = self._intact(E1, E2)
+        s1, s2 = self.slack(E1, E2)
+        return np.where(s1, 0.0, P1), np.where(s2, 0.0, P2)
+
+    def path_energy(self, E1, E2, a1, a2) -> np.ndarray:
+        """Energy per reference area (J/m^2) stored at frozen damage (a1, a2): the work of the
+        membrane's yarn stresses (tension-only, slack rules) along the straight strain path
+        from the reference state, sum_i int_0^1 P_i(s E) dlambda_i/ds ds, by 6-point
+        Gauss-Legendre quadrature in s. For an intact or uniformly damaged unit cell in
+        tension this is its stored energy Psi (Eq. 2-26/2-28); where a yarn is compressed it
+        stays the energy of the stresses the membrane actually uses."""
+        if E1.size == 0:
+            return np.zeros(0)
+        s, w = _PATH_S, _PATH_W
+        n = E1.size
+        S = np.repeat(s, n)
+        e1, e2 = np.tile(E1, s.size) * S, np.tile(E2, s.size) * S
+        P1, P2 = self._frozen_P(e1, e2, np.tile(a1, s.size), np.tile(a2, s.size))
+        dl1 = np.tile(E1, s.size) / np.sqrt(1.0 + 2.0 * e1)   # d lambda_i / ds
+        dl2 = np.tile(E2, s.size) / np.sqrt(1.0 + 2.0 * e2)
+        return (w[:, None] * (P1 * dl1 + P2 * dl2).reshape(s.size, n)).sum(axis=0)
+
+    # ------------------------------------------------------------------ QuadratureMaterial
+    @property
+    def state(self) -> DamageState:
+        """Damage history (alpha1, alpha2) of every owned point after the last :meth:`update`."""
+        return DamageState(self.alpha1, self.alpha2)
+
+    def update(self, E1, E2):
+        """(P1, P2) at every owned point from the damage history this adapter keeps: elastic +
+        viscous yarn stress at the live points (Eq. 2-31 from the surrogate, alpha from
+        Eq. 2-25), zero at the points of removed cells; the history advances to the new alpha."""
+        n = self.w.size
+        idx = self._idx
+        sel = self._sel   # the live points: a slice while none was removed (no gathers)
+        a1h, a2h = self.alpha1, self.alpha2
+        e1, e2 = E1[sel], E2[sel]
+        changed = np.zeros(0, np.int64)
+        if self.damage:
+            p1, p2, b1, b2 = self.sur.update(e1, e2, a1h[sel], a2h[sel])
+            a1, a2, changed = np.empty(n), np.empty(n), np.empty(b1.size, np.int64)
+            changed = changed[:yarn_stress_kernel.new_damage(a1h, a2h, self.live, b1, b2, a1, a2,
+                                                             changed)]
+            if changed.size:
+                c = idx[changed]
+                psi = self.path_energy(np.tile(e1[changed], 2), np.tile(e2[changed], 2),
+                                       np.concatenate((a1h[c], b1[changed])),
+                                       np.concatenate((a2h[c], b2[changed])))  # before, after
+                self.damage_dissipation += float(self.w[c] @ (psi[:c.size] - psi[c.size:]))
+        else:
+            a1, a2 = a1h.copy(), a2h.copy()
+            p1, p2 = self._intact(e1, e2)
+        # Wrinkled yarns carry nothing (see `slack` and the module docstring): below the
+        # table a lookup at its end would freeze a positive crimp-interchange tension and pull
+        # the cell together without bound; in biaxial compression the unit cell's branch has
+        # jumps whose interpolant leaves small spurious tensions with huge slopes.
+        beta_over_dt = self.beta / self.dt_prev if self.beta > 0.0 and self.dt_prev > 0.0 else 0.0
+        ref = self.P_el[:, sel]  # P(E^{n-1}, alpha^{n-1}); at the points whose alpha changed:
+        if beta_over_dt and changed.size:
+            c = idx[changed]
+            ref = ref.copy()
+            ref[:, changed] = self._frozen_P(self.E1[c], self.E2[c], a1[c], a2[c])  # alpha^n
+        P_el, P_v, lam = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
+        below, slack_tension, work = yarn_stress_kernel.stresses(
+            E1, E2, self.live, p1, p2, ref, self.E_lo, beta_over_dt, self.w, self.lam, self.P_v,
+            P_el, P_v, lam)
+        self.below_table += below
+        self.slack_tension += slack_tension
+        self.viscous_dissipation += work
+        self.E1_prev, self.E2_prev = self.E1, self.E2
+        self.E1, self.E2 = E1.copy(), E2.copy()
+        self.lam, self.P_el, self.P_v = lam, P_el, P_v
+        self.alpha1, self.alpha2 = a1, a2
+        return P_el[0] + P_v[0], P_el[1] + P_v[1]
+
+    def wave_modulus(self, lookahead: float = 0.0) -> float:
+        """Largest wave modulus (N/m) over this rank's live points: the largest eigenvalue of
+        the symmetric part of dP_i/dlambda_j (damage frozen, rows of yarns that can carry
+        tension only) or the geometric stiffness
+        P_i / lambda_i, at the strains extrapolated ``lookahead`` steps ahead along their last
+        increase (so that the step chosen now is still stable when the next check comes).
+
+        Per point the tangent is bounded by ``WAVE_MODULUS_MARGIN`` max(alpha1, alpha2) times the
+        straight intact yarn's modulus: no state of the unit cell is stiffer than its straight
+        yarns (Eq. 2-31 with the crimp pulled out); steeper slopes of the interpolant are those
+        across a jump of its compressive branch, which would otherwise collapse dt 3 x in every
+        damaged run (docs/impact.md). Cut evaluations are counted in ``modulus_bounded``."""
+        idx = self._idx
+        if idx.size == 0:
+            return 0.0
+        E1, E2 = self.E1[idx], self.E2[idx]
+        if lookahead > 0:
+            E1 = E1 + lookahead * np.maximum(E1 - self.E1_prev[idx], 0.0)
+            E2 = E2 + lookahead * np.maximum(E2 - self.E2_prev[idx], 0.0)
+        slack1, slack2 = self.slack(E1, E2)
+        E1, E2 = self._clip(E1), self._clip(E2)
+        a1 = self.alpha1[idx] if self.damage else np.ones(idx.size)
+        a2 = self.alpha2[idx] if self.damage else np.ones(idx.size)
+        vals, d1, d2 = self.sur.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
+        d11, d12, d21, d22 = lambda_tangent(E1, E2, d1, d2)
+        # Only a yarn that can carry tension has stiffness: not a broken one, not a slack one,
+        # and not a compressed one whose unit-cell P_i <= 0 (tension-only). The unit cell's
+        # compressive branch, never felt by the membrane, has jumps (tangents up to 4e8 N/m
+        # near E1 = E2 = -0.045, 60 x the straight yarn) that would otherwise collapse dt.
+        on1 = (a1 > 0) & ~slack1 & ((E1 >= 0) | (vals[:, 0] > 0))
+        on2 = (a2 > 0) & ~slack2 & ((E2 >= 0) | (vals[:, 1] > 0))
+        t11, t12 = np.where(on1, d11, 0.0), np.where(on1, d12, 0.0)
+        t21, t22 = np.where(on2, d21, 0.0), np.where(on2, d22, 0.0)
+        eig = symmetric_eigmax(t11, t12, t21, t22)
+        bound = WAVE_MODULUS_MARGIN * self.k_straight * np.maximum(a1, a2)
+        above = eig > bound
+        if above.any():
+            self.modulus_bounded += int(np.count_nonzero(above))
+            eig = np.where(above, bound, eig)
+        geometric = np.maximum(np.maximum(self.P_el[0, idx], 0) / np.sqrt(1 + 2 * E1),
+                               np.maximum(self.P_el[1, idx], 0) / np.sqrt(1 + 2 * E2))
+        return float(max(eig.max(), geometric.max(), 0.0))
+
+    def max_wave_modulus(self) -> float:
+        """Rank-local :meth:`wave_modulus` (``CentralDifference.stable_dt`` compatibility)."""
+        return self.wave_modulus()
+
+    def remove(self, points: np.ndarray) -> None:
+        """Take points out (removed cells): no stress from now on; book their stored energy."""
+        points = np.asarray(points, dtype=np.int64)
+        points = points[self.live[points]]
+        if points.size == 0:
+            return
+        psi = self.path_energy(self.E1[points], self.E2[points], self.alpha1[points] if self.damage
+                               else np.ones(points.size), self.alpha2[points] if self.damage else
+                               np.ones(points.size))
+        self.erosion_energy += float(self.w[points] @ psi)
+        self.live[points] = False
+        self._idx = np.flatnonzero(self.live)
+        self._sel = self._idx
+        self.P_el[:, points] = 0.0
+        self.P_v[:, points] = 0.0
+

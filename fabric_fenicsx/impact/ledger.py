@@ -1,0 +1,66 @@
+"""The energy ledger of an impact run: global energies and run state, the same on every rank.
+
+Each step the ranks' contributions are summed (or maximised) in one collective call by
+:func:`reduce_named`, which keeps their names: ``sums["viscous_dissipation"]``, not ``glob[4]``.
+The balance KE_fabric + KE_projectile + W_internal - W_contact = KE_0 is explained in
+docs/impact_model.md.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+__all__ = ["EnergyLedger", "reduce_named"]
+
+
+def reduce_named(comm, values: dict[str, float], op=MPI.SUM) -> dict[str, float]:
+    """The named values reduced over all ranks with ``op`` (one Allreduce, in the dict's order)."""
+    local = np.array(list(values.values()), dtype=float)
+    total = np.empty_like(local)
+    comm.Allreduce(local, total, op=op)
+    return dict(zip(values, total))
+
+
+@dataclass
+class EnergyLedger:
+    """Global energies (J) and run state, identical on every rank."""
+    W_projectile: float = 0.0       # work of the contact force on the projectile
+    penalty_energy: float = 0.0
+    friction_estimate: float = 0.0  # -sum friction_work (first-order split, PenaltyContact)
+    viscous: float = 0.0
+    damage: float = 0.0
+    erosion: float = 0.0
+    energy_error: float = 0.0
+    error_now: float = 0.0
+    deleted: int = 0
+    eroded: int = 0
+    n_contact: int = 0
+    contact_force: float = 0.0
+    central_uz: float = 0.0
+    z_max: float = 0.0
+    n_front: int = 0
+    t_touch: float | None = None
+    step_touch: int | None = None
+    beyond_table: int = 0       # point evaluations above the table (damage off)
+    below_table: int = 0        # point evaluations with a yarn compressed below the table
+    slack_tension: int = 0      # ... where a slack rule zeroed a positive table tension
+    t_last_contact: float | None = None
+    damage_onset_time: float | None = None
+    damage_onset_deflection: float | None = None
+
+    def book_step(self, sums: dict[str, float], maxima: dict[str, float]) -> None:
+        """Take one step's reduced values (see ``ImpactSimulation._reduce``)."""
+        self.deleted += int(sums["deleted"])
+        self.eroded += int(sums["eroded"])
+        self.penalty_energy = sums["penalty_energy"]
+        self.viscous = sums["viscous_dissipation"]
+        self.damage = sums["damage_dissipation"]
+        self.erosion = sums["erosion_energy"]
+        self.friction_estimate += sums["friction_dissipation"]
+        self.n_contact = int(sums["n_contact"])
+        self.contact_force = sums["contact_force"]
+        self.central_uz = sums["central_uz"]
+        self.z_max = maxima["z_max"]
+        self.n_front = int(sums["n_front"])

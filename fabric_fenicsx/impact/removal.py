@@ -1,0 +1,109 @@
+"""Removal of cells in an impact run: which cells go (deletion, erosion) and which fabric is
+still attached to a clamped edge.
+
+* **Deletion** (Table 2): a cell whose quadrature points all have SDV1 = 0 (both yarns broken,
+  :attr:`~fabric_fenicsx.material.contract.DamageState.removed`).
+* **Erosion**: a live cell with a yarn-direction Green strain above ``material.erosion_strain``
+  at any point (no unit-cell state is there; docs/impact_model.md).
+
+A removed cell carries no force from any weak-form term (the membrane's live-cell mask) and no
+material stress (the material's :meth:`remove`), and takes part in contact only through its
+live neighbours. Pieces cut loose from every clamped edge (a plug) are tracked as free nodes.
+"""
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+__all__ = ["CellRemoval"]
+
+
+class CellRemoval:
+    """Live, deleted and eroded cells of this rank, and the live and free nodes.
+
+    membrane: the :class:`~fabric_fenicsx.fem.membrane.Membrane`; material: its
+    ``QuadratureMaterial``; clamped_blocks: local nodes (owned and ghost) of the clamped edges;
+    erosion_strain: None for no removal at all (damage off)."""
+
+    def __init__(self, membrane, material, clamped_blocks: np.ndarray, erosion_strain: float | None):
+        self.m, self.material = membrane, material
+        self.npc = membrane.n_points_per_cell
+        self.erosion_strain = erosion_strain
+        self.clamped_blocks = clamped_blocks
+        n_cells, self.n_nodes = membrane.n_cells, membrane.n_owned_nodes
+        self.live_cells = np.ones(n_cells, dtype=bool)
+        self.deleted_cells = np.zeros(n_cells, dtype=bool)
+        self.eroded_cells = np.zeros(n_cells, dtype=bool)
+        self.live_nodes = np.ones(self.n_nodes, dtype=bool)
+        self.free_nodes = np.zeros(self.n_nodes, dtype=bool)   # in pieces cut loose (plugs)
+        self._node_flags = None
+
+    def select(self) -> tuple[np.ndarray, np.ndarray]:
+        """Cells to delete (all points SDV1 = 0) and to erode (a yarn strain beyond the
+        erosion strain) now, among the live cells of this rank."""
+        if self.erosion_strain is None:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        mat, npc = self.material, self.npc
+        dead = mat.state.removed.reshape(-1, npc).all(axis=1)
+        strain = np.maximum(mat.E1, mat.E2).reshape(-1, npc).max(axis=1)
+        over = strain > self.erosion_strain
+        delete = np.flatnonzero(dead & self.live_cells)
+        erode = np.flatnonzero(over & ~dead & self.live_cells)
+        return delete, erode
+
+    def remove(self, delete: np.ndarray, erode: np.ndarray) -> None:
+        """Take the cells out of the material and of every weak-form term."""
+        cells = np.concatenate((delete, erode))
+        self.live_cells[cells] = False
+        self.deleted_cells[delete] = True
+        self.eroded_cells[erode] = True
+        points = (cells[:, None] * self.npc + np.arange(self.npc)).ravel()
+        self.material.remove(points)
+        self.m.remove_cells(cells)
+
+    def _exchange_nodes(self, marked: np.ndarray) -> np.ndarray:
+        """A node marked on any rank, marked on every rank that holds it (owned or ghost;
+        collective): ``marked`` and the result are over this rank's local nodes."""
+        f = self._node_flags
+        f.x.array[:] = 0.0
+        f.x.array[0::3] = marked
+        f.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        f.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        return f.x.array[0::3] > 0.0
+
+    def update_nodes(self) -> None:
+        """After cells were removed (collective): ``live_nodes``, the owned nodes touching at
+        least one live cell on any rank, and ``free_nodes``, the live nodes in pieces of fabric
+        cut loose from every clamped edge.
+
+        A node is attached if a chain of live cells joins it to a clamped node: propagated
+        cell by cell on each rank, exchanged across ranks through the ghost nodes, until no
+        rank finds a new attached node. A piece that is not attached (a plug punched out by
+        the projectile) is still simulated, but it neither keeps a perforation from ending
+        the run nor counts as a blow-up when it flies away with the projectile."""
+        m = self.m
+        if self._node_flags is None:
+            self._node_flags = fem.Function(m.V)
+            self._cell_nodes = m.V.dofmap.list.array.reshape(-1, m.V.dofmap.cell_dofs(0).size)[:m.n_cells]
+        cells = self._cell_nodes[self.live_cells]
+        n_local = self._node_flags.x.array.size // 3
+        touched = np.zeros(n_local, dtype=bool)
+        touched[cells.ravel()] = True
+        self.live_nodes = self._exchange_nodes(touched)[:self.n_nodes]
+        attached = np.zeros(n_local, dtype=bool)
+        attached[self.clamped_blocks] = True
+        while True:
+            while True:   # on this rank
+                grown = attached.copy()
+                grown[cells[attached[cells].any(axis=1)].ravel()] = True
+                if np.array_equal(grown, attached):
+                    break
+                attached = grown
+            merged = self._exchange_nodes(attached)
+            new = m.comm.allreduce(int(np.count_nonzero(merged & ~attached)), op=MPI.SUM)
+            attached = merged
+            if new == 0:
+                break
+        self.free_nodes = self.live_nodes & ~attached[:self.n_nodes]

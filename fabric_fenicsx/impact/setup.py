@@ -1,0 +1,52 @@
+"""From a scene to the model's parts: fabric, mesh, weak-form terms, projectile and contact."""
+from __future__ import annotations
+
+from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, load_mesh, uniform_square)
+from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
+from fabric_fenicsx.fem.terms import IsotropicShear, MembraneTerm
+from fabric_fenicsx.impact.scene import Scene
+from fabric_fenicsx.material.fabric import Fabric, zylon_as
+
+__all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile"]
+
+EDGE_TAGS = {"left": LEFT, "right": RIGHT, "bottom": BOTTOM, "top": TOP}
+"""Scene edge names -> facet tags of the fabric meshes."""
+
+
+def build_fabric(scene: Scene) -> Fabric:
+    """The scene's fabric: a TOML file (``fabric.file``) or a built-in (Table 1)."""
+    if scene.fabric.file:
+        return Fabric.load(scene.fabric.file)
+    return zylon_as(bending=scene.fabric.bending)
+
+
+def build_mesh(scene: Scene, comm):
+    """(mesh, facet tags) of the scene: n x n squares or the graded gmsh mesh fine at the
+    impact point."""
+    ms = scene.mesh
+    if ms.kind == "uniform":
+        msh, _, facet_tags = uniform_square(ms.n, ms.side, comm)
+    else:
+        spec = MeshSpec(side=ms.side, h_centre=ms.h_centre, h_edge=ms.h_edge,
+                        refine_radius=ms.refine_radius, centre=(scene.projectile.x, scene.projectile.y),
+                        grading=ms.grading)
+        msh, _, facet_tags = load_mesh(spec, comm)
+    return msh, facet_tags
+
+
+def build_terms(scene: Scene) -> list[MembraneTerm]:
+    """The weak-form terms the scene switches on besides the yarns' (``[membrane]``)."""
+    terms: list[MembraneTerm] = []
+    if scene.membrane.shear_modulus > 0:
+        terms.append(IsotropicShear(scene.membrane.shear_modulus))
+    return terms
+
+
+def build_projectile(scene: Scene) -> tuple[Projectile, PenaltyContact]:
+    """The rigid projectile of the scene and its penalty contact with the fabric."""
+    p = scene.projectile
+    projectile = Projectile(diameter=p.diameter, length=p.length, fillet=p.fillet, mass=p.mass,
+                            velocity=p.velocity, friction=p.friction, axis_xy=(p.x, p.y), z0=p.standoff)
+    contact = PenaltyContact(projectile, damping_ratio=p.contact_damping,
+                             penalty_fraction=p.penalty_fraction)
+    return projectile, contact

@@ -1,0 +1,543 @@
+"""Ballistic impact of a woven-fabric ply by a rigid flat-ended cylinder (thesis chapter 4).
+
+:class:`ImpactSimulation` assembles the parts a scene asks for (:mod:`.setup`): the membrane
+with its weak-form terms, the surrogate at the quadrature points (``fem.yarn_stress``), the
+explicit central difference, the rigid projectile with penalty contact. :meth:`ImpactSimulation.run`
+is the step loop: contact, fabric step, cell removal (:mod:`.removal`), one collective reduction
+into the energy ledger (:mod:`.ledger`), the projectile, output (:mod:`.output`), checks for
+numerical trouble, the time step (:mod:`.timestep`) and the end test. The modelling decisions
+and the energy balance are in docs/impact_model.md, measured results in docs/impact.md.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from fabric_fenicsx.fem.explicit import CentralDifference
+from fabric_fenicsx.fem.membrane import Membrane
+from fabric_fenicsx.fem.mesh import edge_dofs, min_cell_size
+from fabric_fenicsx.fem.projectile import ProjectileState, advance
+from fabric_fenicsx.fem.yarn_stress import YarnStress, straight_yarn_modulus
+from fabric_fenicsx.impact.chatter import chatter_statistics
+from fabric_fenicsx.impact.ledger import EnergyLedger, reduce_named
+from fabric_fenicsx.impact.removal import CellRemoval
+from fabric_fenicsx.impact.scene import Scene
+from fabric_fenicsx.impact.setup import EDGE_TAGS, build_fabric, build_mesh, build_projectile, build_terms
+from fabric_fenicsx.impact.timestep import DtChange, check_due, stable_dt
+from fabric_fenicsx.material.unitcell import UnitCellError
+from fabric_fenicsx.studies.provenance import code_fingerprint
+from fabric_fenicsx.surrogate.table import SurrogateError
+
+__all__ = ["ImpactError", "ImpactSimulation", "run_impact", "HISTORY_COLUMNS"]
+
+HISTORY_COLUMNS = (
+    "time", "projectile_z", "projectile_velocity", "contact_force", "fabric_kinetic",
+    "projectile_kinetic", "internal_work", "stored_energy", "damage_dissipation", "erosion_energy",
+    "viscous_dissipation", "penalty_energy", "contact_dissipation", "energy_error",
+    "central_deflection", "dt", "n_contact", "deleted_cells", "eroded_cells")
+"""history.csv: time (s); projectile face height (m) and velocity (m/s, > 0 into the fabric);
+contact force on the projectile (N, > 0 resisting); energies (J); energy_error (relative);
+central deflection (m, > 0 along the impact); dt (s); contact nodes; removed cell counts."""
+
+_BLOW_UP_ENERGY = 1.2   # kinetic energy above this multiple of KE_0 = numerical trouble
+_NEGATIVE_WORK = 0.05   # yarns that gave back more than this fraction of KE_0 beyond what they got
+_STEP_ERRORS = (FloatingPointError, ValueError, SurrogateError, UnitCellError)
+
+
+class ImpactError(RuntimeError):
+    """The impact run stopped on numerical trouble; the message names step, place and fix."""
+
+
+@dataclass
+class _Clock:
+    contact: float = 0.0
+    output: float = 0.0
+    bookkeeping: float = 0.0   # includes dt_check
+    dt_check: float = 0.0
+
+
+@dataclass
+class _Loop:
+    """What the step loop carries from one step to the next."""
+    step: int = 0
+    dt: float = 0.0
+    dt_prev: float = 0.0
+    dt_shown: float = 0.0
+    fz_prev: float = 0.0
+    z_prev: float = 0.0
+    next_history: float = 0.0
+    next_frame: float = 0.0
+    last_progress: float = 0.0
+    steps_at_progress: int = 0
+
+
+class ImpactSimulation:
+    """One impact scene on ``comm``: build everything the scene uses, then :meth:`run`.
+
+    out_dir: output folder (created); verbose: progress lines on rank 0.
+    """
+
+    def __init__(self, scene: Scene, out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
+                 verbose: bool = True):
+        from fabric_fenicsx.impact.output import ImpactOutput
+        from fabric_fenicsx.surrogate.table import Surrogate
+
+        t_build = time.perf_counter()
+        self.scene, self.comm, self.verbose = scene, comm, verbose
+        self.rank0 = comm.rank == 0
+        self.out_dir = Path(out_dir)
+        sc = scene
+
+        # -- mesh, membrane and its weak-form terms
+        self.msh, facet_tags = build_mesh(sc, comm)
+        self.membrane = m = Membrane(self.msh, angle=math.radians(sc.material.angle),
+                                     quadrature_degree=sc.mesh.quadrature_degree)
+        for term in build_terms(sc):
+            m.add_term(term)
+        self.n_cells_global = comm.allreduce(m.n_cells, op=MPI.SUM)
+        self.npc = m.n_points_per_cell
+
+        # -- material at the quadrature points
+        self.fabric = build_fabric(sc)
+        self.rho_A = self.fabric.areal_density
+        workers = 1 if comm.size > 1 else None
+        cache = sc.material.surrogate_cache or None
+        self.surrogate = Surrogate(self.fabric, cache_dir=cache, workers=workers,
+                                   progress=verbose and self.rank0)
+        self.L_min = min_cell_size(self.msh, "area_over_diagonal")
+        k_straight = straight_yarn_modulus(self.fabric)
+        self.omega_straight = 2.0 * math.sqrt(k_straight / self.rho_A) / self.L_min
+        self.xi = sc.run.damping
+        beta = 2.0 * self.xi / self.omega_straight
+        self.material = YarnStress(self.surrogate, m.quadrature_weights_detJ, sc.material.damage, beta,
+                                   straight_modulus=k_straight)
+
+        # -- integrator, removal of cells
+        clamped = edge_dofs(m.V, facet_tags, [EDGE_TAGS[e] for e in sc.boundary.clamped])
+        self.cd = CentralDifference(m, self.material, self.rho_A, clamped, damping=0.0)
+        self.removal = CellRemoval(m, self.material, np.unique(clamped // 3),
+                                   sc.material.erosion_strain if sc.material.damage else None)
+        self.n_nodes = m.n_owned_nodes
+        self.X = m.V.tabulate_dof_coordinates()[:self.n_nodes].copy()
+        self.X[:, 2] = 0.0
+        self.node_mass = self.cd.mass[0::3].copy()
+
+        # -- projectile and contact
+        p = sc.projectile
+        self.projectile, self.contact = build_projectile(sc)
+        self.state = ProjectileState.initial(self.projectile)
+        self.KE0 = self.state.kinetic_energy
+        self.axis_xy = np.array([p.x, p.y])
+        dist = np.hypot(self.X[:, 0] - p.x, self.X[:, 1] - p.y)
+        local = (float(dist.min()), comm.rank) if self.n_nodes else (math.inf, comm.rank)
+        _, self.centre_rank = comm.allreduce(local, op=MPI.MINLOC)
+        self.centre_node = int(np.argmin(dist)) if comm.rank == self.centre_rank else -1
+
+        # -- time step
+        self.dt = self.stable_dt(self._global_modulus())
+        self.dt_initial = self.dt
+        self.dt_changes: list[DtChange] = []
+
+        self.output = ImpactOutput(self.out_dir, m, list(sc.output.fields) if sc.output.xdmf_interval > 0 else [],
+                                   comm, HISTORY_COLUMNS)
+        self.ledger = EnergyLedger()
+        self.clock = _Clock()
+        self._tile_seconds0 = self.surrogate.build_seconds
+        self.build_seconds = time.perf_counter() - t_build
+        terms = ", ".join(t.name for t in m.terms)
+        self._say(f"impact: {sc.source}: {self.n_cells_global} cells on {comm.size} rank(s), "
+                  f"L_min = {self.L_min * 1e3:.3f} mm, damping xi = {self.xi:g} (beta = {beta:.3e} s), "
+                  f"dt = {self.dt:.4e} s, v0 = {p.velocity:g} m/s, damage {'on' if sc.material.damage else 'off'}, "
+                  f"clamped {sc.boundary.clamped}, angle {sc.material.angle:g} deg, terms: {terms}")
+
+    # ------------------------------------------------------------------ small helpers
+    @property
+    def live_cells(self) -> np.ndarray:
+        """Cells of this rank still in the fabric (neither deleted nor eroded)."""
+        return self.removal.live_cells
+
+    @property
+    def live_nodes(self) -> np.ndarray:
+        """Owned nodes touching a live cell on any rank."""
+        return self.removal.live_nodes
+
+    def _say(self, text: str) -> None:
+        if self.verbose and self.rank0:
+            print(text, flush=True)
+
+    def _global_modulus(self, lookahead: float = 0.0) -> float:
+        """Largest wave modulus over all ranks (N/m): the material's plus the terms'."""
+        local = self.material.wave_modulus(lookahead)
+        return self.comm.allreduce(local, op=MPI.MAX) + self.membrane.terms_wave_modulus()
+
+    def stable_dt(self, modulus: float) -> float:
+        """safety x the damped Courant limit for the wave modulus (see :mod:`.timestep`).
+        Before the fabric is loaded the modulus is that of the reference state (crimped yarns)."""
+        if not (math.isfinite(modulus) and modulus > 0):
+            raise ImpactError(f"stable time step: the largest wave modulus is {modulus!r} N/m; the "
+                              "surrogate returned no stiffness at the live points (all yarns broken or "
+                              "a table problem): check the surrogate with `fabric-fenicsx surrogate`")
+        return stable_dt(modulus, self.rho_A, self.L_min, self.material.beta, self.scene.run.dt_safety)
+
+    # ------------------------------------------------------------------ one step's parts
+    def _contact(self, dt: float):
+        """Contact forces at t_n on this rank's live owned nodes near the projectile."""
+        s, proj = self.state, self.projectile
+        n_dofs = self.membrane.n_owned_dofs
+        zero_info = dict(penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
+                         n_attached=0, max_penetration=0.0, normal_force=0.0)
+        margin = abs(s.vz) * dt + 1e-9
+        if not proj.may_touch(self.ledger.z_max, s.z, margin):
+            return None, np.zeros(3), zero_info
+        x = self.X + self.cd.u.reshape(-1, 3)
+        r2 = (x[:, 0] - self.axis_xy[0]) ** 2 + (x[:, 1] - self.axis_xy[1]) ** 2
+        near = (self.removal.live_nodes & (r2 < proj.radius ** 2) & (x[:, 2] > s.z)
+                & (x[:, 2] < s.z + proj.length))
+        sel = np.flatnonzero(near)
+        if sel.size == 0:
+            return None, np.zeros(3), zero_info
+        v = self.cd.v.reshape(-1, 3)
+        f_nodes, f_p, info = self.contact.forces(x[sel], v[sel], self.node_mass[sel], dt, s)
+        # touching nodes of fabric still attached to a clamped edge (a plug riding on the
+        # face does not keep the run from ending)
+        info["n_attached"] = int(np.count_nonzero(np.any(f_nodes != 0.0, axis=1)
+                                                  & ~self.removal.free_nodes[sel]))
+        f_ext = np.zeros(n_dofs)
+        f_ext.reshape(-1, 3)[sel] = f_nodes
+        return f_ext, f_p, info
+
+    def _fabric_step(self, loop: _Loop, t_n: float, f_ext):
+        """The membrane from t_n to t_n + dt; numerical trouble becomes an :class:`ImpactError`."""
+        self.material.dt_prev = loop.dt_prev
+        try:
+            return self.cd.step(loop.dt, f_ext)
+        except _STEP_ERRORS as err:
+            raise ImpactError(self._trouble(loop.step, t_n, f"{type(err).__name__}: {err}")) from err
+
+    def _reduce(self, loop: _Loop, t_n: float, f_p, info, uz_c: float, removed: tuple, check: bool):
+        """This step's values summed and maximised over all ranks (two collective calls)."""
+        mat, cd, removal = self.material, self.cd, self.removal
+        delete, erode = removed
+        damaged = bool(np.any(mat.alpha1 < 1.0) or np.any(mat.alpha2 < 1.0)) if self.scene.material.damage else False
+        x_new = self.X[:, 2] + cd.u[2::3]
+        live_z = x_new[removal.live_nodes]
+        r2 = ((self.X[:, 0] + cd.u[0::3] - self.axis_xy[0]) ** 2
+              + (self.X[:, 1] + cd.u[1::3] - self.axis_xy[1]) ** 2)
+        attached = removal.live_nodes & ~removal.free_nodes
+        front = int(np.count_nonzero(attached & (r2 < self.projectile.radius ** 2)
+                                     & (x_new < self.state.z + self.projectile.length)))
+        sums = reduce_named(self.comm, {
+            "contact_force": f_p[2], "penalty_energy": info["penalty_energy"],
+            "friction_dissipation": -info["friction_work"], "n_contact": info["n_active"],
+            "viscous_dissipation": mat.viscous_dissipation, "damage_dissipation": mat.damage_dissipation,
+            "erosion_energy": mat.erosion_energy, "deleted": delete.size, "eroded": erode.size,
+            "damaged": float(damaged), "central_uz": uz_c, "n_front": front,
+            "beyond_table": mat.beyond_table, "below_table": mat.below_table,
+            "slack_tension": mat.slack_tension, "n_attached": info["n_attached"]})
+        tw = time.perf_counter()
+        try:
+            modulus = mat.wave_modulus(self.scene.run.dt_check_interval) if check else 0.0
+        except _STEP_ERRORS as err:
+            raise ImpactError(self._trouble(loop.step, t_n, f"time-step check: {type(err).__name__}: "
+                                            f"{err}")) from err
+        self.clock.dt_check += time.perf_counter() - tw
+        maxima = reduce_named(self.comm, {
+            "z_max": live_z.max() if live_z.size else -math.inf, "modulus": modulus,
+            "attached_displacement": float(np.abs(cd.u.reshape(-1, 3)[attached]).max(initial=0.0))},
+            op=MPI.MAX)
+        return sums, maxima
+
+    def _book(self, loop: _Loop, t_n: float, sums: dict, maxima: dict) -> None:
+        """The step's reduced values into the ledger; removed cells update the node sets."""
+        ledger = self.ledger
+        if sums["deleted"] or sums["eroded"]:
+            self.removal.update_nodes()
+        ledger.book_step(sums, maxima)
+        if sums["n_contact"] > 0 and ledger.t_touch is None:
+            ledger.t_touch, ledger.step_touch = t_n, loop.step
+        if sums["n_attached"] > 0:
+            ledger.t_last_contact = t_n
+        if sums["damaged"] and ledger.damage_onset_time is None:
+            ledger.damage_onset_time = t_n
+            ledger.damage_onset_deflection = -sums["central_uz"]
+            self._say(f"  damage starts at t = {t_n * 1e6:.2f} us, central deflection "
+                      f"{-sums['central_uz'] * 1e3:.2f} mm")
+
+    def _projectile(self, loop: _Loop, fz: float, energy) -> tuple[float, float, float]:
+        """Energy balance at t_n and the projectile to t_n + dt: (KE_p, v_full, W_contact)."""
+        s, ledger = self.state, self.ledger
+        vz_full = s.vz + 0.5 * loop.dt_prev * fz / s.mass
+        ledger.W_projectile += 0.5 * (loop.fz_prev + fz) * (s.z - loop.z_prev)
+        KE_p = 0.5 * s.mass * vz_full ** 2
+        W_contact = energy.external + ledger.W_projectile
+        total = energy.kinetic + KE_p + energy.internal - W_contact - energy.support
+        ledger.error_now = abs(total - self.KE0) / self.KE0
+        ledger.energy_error = max(ledger.energy_error, ledger.error_now)
+        loop.z_prev, loop.fz_prev = s.z, fz
+        self.state = advance(s, fz, loop.dt)
+        return KE_p, vz_full, W_contact
+
+    def _write(self, loop: _Loop, t_n: float, energy, KE_p, vz_full, W_contact) -> None:
+        """history.csv and XDMF frames at their intervals."""
+        out = self.scene.output
+        if t_n >= loop.next_history:
+            self.output.history(self._history_row(t_n, energy, KE_p, vz_full, W_contact, loop.dt))
+            loop.next_history = _next_time(loop.next_history, out.history_interval, t_n)
+        if t_n >= loop.next_frame:
+            self._frame(t_n)
+            loop.next_frame = _next_time(loop.next_frame, out.xdmf_interval, t_n)
+
+    def _check_trouble(self, loop: _Loop, t_n: float, energy, KE_p: float, maxima: dict) -> None:
+        """Stop with a clear message on a blow-up or a broken energy balance."""
+        ledger, sc = self.ledger, self.scene
+        kinetic = energy.kinetic + KE_p
+        W_el = energy.internal - ledger.viscous
+        moved = maxima["attached_displacement"]
+        tripped = [what for bad, what in (
+            (kinetic > _BLOW_UP_ENERGY * self.KE0,
+             f"kinetic energy {kinetic:.4g} J > {_BLOW_UP_ENERGY:g} x the impact energy KE_0 = "
+             f"{self.KE0:.4g} J"),
+            (W_el < -_NEGATIVE_WORK * self.KE0,
+             f"the yarns gave back {-W_el:.4g} J more than they received (> {_NEGATIVE_WORK:g} KE_0)"),
+            (moved > sc.mesh.side,
+             f"fabric attached to a clamped edge moved {moved:.4g} m, more than the fabric's side "
+             f"{sc.mesh.side:g} m")) if bad]
+        if tripped:
+            raise ImpactError(self._trouble(loop.step, t_n, "blow-up: " + "; ".join(tripped)))
+        if ledger.error_now > sc.run.energy_tolerance:
+            raise ImpactError(self._trouble(
+                loop.step, t_n, f"energy balance error {ledger.error_now:.3%} > run.energy_tolerance = "
+                f"{sc.run.energy_tolerance:g} (damage {'on' if sc.material.damage else 'off'}; the balance "
+                f"KE + W_internal - W_contact = KE_0 no longer holds: the step is too large for "
+                f"the contact or the fabric's stiffness)"))
+
+    def _next_dt(self, loop: _Loop, check: bool, modulus: float) -> None:
+        """Lower dt when the re-checked wave modulus asks for it; every change is in the
+        summary, on screen those of 1 % or more since the last shown."""
+        if not (check and modulus > 0):
+            return
+        dt_new = self.stable_dt(modulus + self.membrane.terms_wave_modulus())
+        if dt_new < loop.dt:
+            self.dt_changes.append(DtChange(loop.step, self.cd.time, loop.dt, dt_new, float(modulus)))
+            if dt_new < 0.99 * loop.dt_shown:
+                self._say(f"  dt {loop.dt_shown:.4e} -> {dt_new:.4e} s at step {loop.step} (t = "
+                          f"{self.cd.time * 1e6:.2f} us, wave modulus {modulus:.4g} N/m)")
+                loop.dt_shown = dt_new
+            loop.dt = dt_new
+
+    def _progress(self, loop: _Loop, fz: float) -> None:
+        now = time.perf_counter()
+        if (self.verbose and self.scene.output.progress_interval > 0
+                and now - loop.last_progress >= self.scene.output.progress_interval):
+            b = self.ledger
+            rate = (loop.step - loop.steps_at_progress) / (now - loop.last_progress)
+            self._say(f"  t = {self.cd.time * 1e6:8.2f} us  step {loop.step:7d}  {rate:7.1f} steps/s  "
+                      f"v = {-self.state.vz:8.3f} m/s  F = {fz:9.1f} N  dt = {loop.dt:.3e} s  "
+                      f"removed {b.deleted}+{b.eroded}  energy error {b.error_now:.2e}")
+            loop.last_progress, loop.steps_at_progress = now, loop.step
+
+    def _end_reason(self, loop: _Loop, n_attached: float) -> str | None:
+        run, ledger, t = self.scene.run, self.ledger, self.cd.time
+        released = (ledger.t_last_contact is not None and n_attached == 0
+                    and t - ledger.t_last_contact >= run.release_time)
+        if released and self.state.vz > 0:
+            return "rebound"
+        if released and ledger.n_front == 0:
+            return "perforated"
+        if t >= run.t_end:
+            return "time_limit"
+        if run.max_steps and loop.step >= run.max_steps:
+            return "max_steps"
+        return None
+
+    # ------------------------------------------------------------------ run
+    def run(self) -> dict:
+        """Integrate until perforation, rebound or the time limit; write the output; return the
+        summary (identical on every rank)."""
+        sc, cd, clock = self.scene, self.cd, self.clock
+        t_wall0 = time.perf_counter()
+        loop = _Loop(dt=self.dt, dt_shown=self.dt, z_prev=self.state.z, last_progress=t_wall0,
+                     next_frame=0.0 if sc.output.xdmf_interval > 0 else math.inf)
+        force_t, force_f = [], []
+        while True:
+            t_n = cd.time
+            tc = time.perf_counter()
+            f_ext, f_p, info = self._contact(loop.dt)
+            uz_c = float(cd.u[3 * self.centre_node + 2]) if self.centre_node >= 0 else 0.0
+            clock.contact += time.perf_counter() - tc
+
+            energy = self._fabric_step(loop, t_n, f_ext)
+
+            tb = time.perf_counter()
+            removed = self.removal.select()
+            if removed[0].size or removed[1].size:
+                self.removal.remove(*removed)
+            check = check_due(loop.step, self.ledger.step_touch, sc.run.dt_check_interval)
+            sums, maxima = self._reduce(loop, t_n, f_p, info, uz_c, removed, check)
+            self._book(loop, t_n, sums, maxima)
+            KE_p, vz_full, W_contact = self._projectile(loop, sums["contact_force"], energy)
+            if self.rank0:
+                force_t.append(t_n)
+                force_f.append(sums["contact_force"])
+            clock.bookkeeping += time.perf_counter() - tb
+
+            to = time.perf_counter()
+            self._write(loop, t_n, energy, KE_p, vz_full, W_contact)
+            clock.output += time.perf_counter() - to
+
+            self._check_trouble(loop, t_n, energy, KE_p, maxima)
+            loop.step += 1
+            loop.dt_prev = loop.dt
+            self._next_dt(loop, check, maxima["modulus"])
+            self._progress(loop, sums["contact_force"])
+            end_reason = self._end_reason(loop, sums["n_attached"])
+            if end_reason:
+                break
+
+        b = self.ledger
+        b.beyond_table, b.below_table = int(sums["beyond_table"]), int(sums["below_table"])
+        b.slack_tension = int(sums["slack_tension"])
+        wall = time.perf_counter() - t_wall0
+        return self._finish(end_reason, loop.step, loop.dt, wall, np.array(force_t), np.array(force_f),
+                            energy)
+
+
+    # ------------------------------------------------------------------ output pieces
+    def _history_row(self, t, energy, KE_p, vz_full, W_contact, dt) -> dict:
+        b = self.ledger
+        W_el = energy.internal - b.viscous
+        return {"time": t, "projectile_z": self.state.z, "projectile_velocity": -vz_full,
+                "contact_force": b.contact_force, "fabric_kinetic": energy.kinetic,
+                "projectile_kinetic": KE_p, "internal_work": energy.internal,
+                "stored_energy": W_el - b.damage - b.erosion, "damage_dissipation": b.damage,
+                "erosion_energy": b.erosion, "viscous_dissipation": b.viscous,
+                "penalty_energy": b.penalty_energy,
+                "contact_dissipation": -W_contact - b.penalty_energy, "energy_error": b.error_now,
+                "central_deflection": -b.central_uz, "dt": dt, "n_contact": b.n_contact,
+                "deleted_cells": b.deleted, "eroded_cells": b.eroded}
+
+    def point_fields(self) -> dict[str, np.ndarray]:
+        """Point values (owned quadrature points) of the cell-wise output fields."""
+        mat = self.material
+        sdv1 = ((mat.alpha1 > 0) | (mat.alpha2 > 0)).astype(float)
+        return {"P1": mat.P_el[0] + mat.P_v[0], "P2": mat.P_el[1] + mat.P_v[1], "E1": mat.E1, "E2": mat.E2,
+                "SDV1": sdv1, "SDV2": mat.alpha1, "SDV3": mat.alpha2}
+
+    def _frame(self, t: float) -> None:
+        self.output.frame(t, self.cd.u, self.cd.v, self.point_fields(), self.live_cells)
+
+    def _trouble(self, step: int, t: float, what: str) -> str:
+        """A message naming step, time, place and the likely fix."""
+        u = self.cd.u.reshape(-1, 3)
+        bad = np.flatnonzero(~np.all(np.isfinite(u), axis=1))
+        if bad.size:
+            place = f"first non-finite node at reference (x, y) = {self.X[bad[0], :2]} m on rank {self.comm.rank}"
+        else:
+            k = int(np.argmax(np.abs(u).sum(axis=1))) if u.size else 0
+            place = (f"largest displacement {u[k]} m at reference (x, y) = {self.X[k, :2]} m on rank "
+                     f"{self.comm.rank}" if u.size else "no owned nodes")
+        return (f"impact run stopped at step {step}, t = {t:.6e} s: {what}; {place}; "
+                f"dt = {self.cd._dt_prev:.3e} s, projectile at z = {self.state.z:.4e} m moving "
+                f"{-self.state.vz:.3f} m/s. Likely fixes: lower run.dt_safety, raise run.damping, "
+                f"lower projectile.penalty_fraction, or refine the mesh at the impact point "
+                f"(mesh.h_centre); see {self.out_dir / 'history.csv'}")
+
+    def _finish(self, end_reason, n_steps, dt, wall, force_t, force_f, energy) -> dict:
+        sc, b, cd, comm = self.scene, self.ledger, self.cd, self.comm
+        v0 = sc.projectile.velocity
+        v_res = -self.state.vz
+        perforated = bool(end_reason == "perforated" or (end_reason != "rebound" and b.n_front == 0
+                                                          and self.state.vz < 0 and b.t_touch is not None))
+        W_el = energy.internal - b.viscous
+        self._frame(cd.time)
+        timings = dict(cd.timings)
+        steps = max(n_steps, 1)
+        # The surrogate solves missing table tiles inside its lookups (constitutive update and
+        # dt checks): that one-off cost is reported apart from the per-step work.
+        tiles = self.surrogate.build_seconds - self._tile_seconds0
+        tiles_in_update = min(tiles, timings["material"])
+        split = {"strain": timings["strain"], "constitutive": timings["material"] - tiles_in_update,
+                 "assembly": timings["assembly"], "contact": self.clock.contact,
+                 "output": self.clock.output, "integrator": timings["rest"],
+                 "dt_check": max(self.clock.dt_check - (tiles - tiles_in_update), 0.0),
+                 "bookkeeping": self.clock.bookkeeping - self.clock.dt_check,
+                 "surrogate_tiles": tiles}
+        chatter = chatter_statistics(force_t, force_f) if self.rank0 else None
+        chatter = comm.bcast(chatter, root=0)
+        summary = {
+            "scene": str(sc.source), "description": sc.description,
+            "v0": v0, "residual_velocity": v_res, "perforated": perforated,
+            "absorbed_energy": 0.5 * sc.projectile.mass * (v0 ** 2 - v_res ** 2),
+            "max_deflection": b.damage_onset_deflection,
+            "damage_onset_time": b.damage_onset_time,
+            "energy_error": b.energy_error, "end_reason": end_reason,
+            "end_time": cd.time, "wall_time_s": wall, "build_time_s": self.build_seconds,
+            "n_cells": self.n_cells_global, "n_steps": n_steps, "dt": dt, "dt_initial": self.dt_initial,
+            "dt_changes": [vars(c) for c in self.dt_changes], "n_ranks": comm.size,
+            "deleted_cells": b.deleted, "eroded_cells": b.eroded,
+            "free_nodes": comm.allreduce(int(np.count_nonzero(self.removal.free_nodes)), op=MPI.SUM),
+            "energies": {"projectile_kinetic_0": self.KE0,
+                         "projectile_kinetic": 0.5 * sc.projectile.mass * v_res ** 2,
+                         "fabric_kinetic": energy.kinetic, "internal_work": energy.internal,
+                         "elastic_work": W_el, "stored_energy": W_el - b.damage - b.erosion,
+                         "damage_dissipation": b.damage, "erosion_energy": b.erosion,
+                         "viscous_dissipation": b.viscous, "penalty_energy": b.penalty_energy,
+                         "contact_dissipation": -(energy.external + b.W_projectile) - b.penalty_energy,
+                         "friction_dissipation_estimate": b.friction_estimate,
+                         "membrane_terms": self.membrane.term_energies()},
+            "contact_chatter": chatter, "touch_time": b.t_touch,
+            "time_per_step_s": {k: v / steps for k, v in split.items() if k != "surrogate_tiles"},
+            "time_total_s": split,
+            "surrogate": {"key": self.surrogate.key, "resolution": self.surrogate.h,
+                          "solves_this_run": comm.allreduce(self.surrogate.solves, op=MPI.SUM),
+                          "points_beyond_table_damage_off": b.beyond_table,
+                          "points_compressed_below_table": b.below_table,
+                          "points_slack_with_table_tension": b.slack_tension,
+                          "wave_modulus_bounded": comm.allreduce(self.material.modulus_bounded,
+                                                                 op=MPI.SUM),
+                          "range": self.surrogate.report_range() if self.rank0 else ""},
+            "mesh": {"L_min": self.L_min, "kind": sc.mesh.kind},
+            "damping": {"xi": self.xi, "beta": self.material.beta, "omega_max": self.omega_straight},
+            "settings": sc.to_dict(),
+            **code_fingerprint(),
+        }
+        if b.beyond_table:
+            st = self.surrogate.stats
+            self._say(f"impact: WARNING: with damage off, {b.beyond_table} point evaluations had a yarn "
+                      f"strain above the surrogate's table (E > {self.surrogate.E_table[1]:.4g}; largest "
+                      f"E1 = {st.E_max[0]:.4g}, E2 = {st.E_max[1]:.4g} on rank 0): their stress was "
+                      "taken at the table's end, so the run left the model's range there")
+        self.output.finish(summary, self.live_cells, self.point_fields(), sc.output.png)
+        self._say(f"impact: {end_reason} at t = {cd.time * 1e6:.1f} us after {n_steps} steps "
+                  f"({wall:.1f} s): v0 = {v0:g} m/s, residual velocity {v_res:.3f} m/s, absorbed "
+                  f"{summary['absorbed_energy']:.2f} J, energy error {b.energy_error:.2e}, removed cells "
+                  f"{b.deleted} deleted + {b.eroded} eroded")
+        if self.rank0 and self.output.xdmf_path is not None and self.verbose:
+            print(f"impact: XDMF for ParaView: {self.output.xdmf_path.resolve()} "
+                  "(Warp By Vector 'displacement'; Threshold SDV1 > 0 hides the holes)", flush=True)
+        return summary
+
+
+def run_impact(scene: Scene, out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
+               verbose: bool = True) -> dict:
+    """Build and run one impact scene; returns the summary (also in out_dir/summary.json)."""
+    sim = ImpactSimulation(scene, out_dir, comm, verbose)
+    try:
+        return sim.run()
+    finally:
+        sim.output.close()
+
+
+def _next_time(t_next: float, interval: float, t_n: float) -> float:
+    """The next output time after ``t_next`` on the grid of ``interval``, past t_n."""
+    t_next += interval
+    while t_next <= t_n:
+        t_next += interval
+    return t_next

@@ -1,0 +1,39 @@
+"""The explicit time step of an impact run: the damped Courant limit and when to re-check it.
+
+dt = safety L_min / c_max (sqrt(1 + xi^2) - xi), c_max^2 = K_max / rho_A, with K_max the
+largest wave modulus over the live points (the material's plus the weak-form terms') and
+xi = beta omega / 2 the damping ratio of the stiffness-proportional damping at the highest mesh
+frequency omega = 2 c_max / L_min. dt is only ever lowered; see docs/impact_model.md.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["DtChange", "stable_dt", "check_due"]
+
+
+@dataclass
+class DtChange:
+    """A lowering of the time step (summary ``dt_changes``)."""
+    step: int
+    time: float
+    dt_old: float
+    dt_new: float
+    modulus: float
+
+
+def stable_dt(modulus: float, areal_density: float, L_min: float, beta: float, safety: float) -> float:
+    """safety x the damped Courant limit (s) for the wave modulus ``modulus`` (N/m), areal
+    density rho_A (kg/m^2), smallest cell size L_min (m) and damping coefficient beta (s)."""
+    c = math.sqrt(modulus / areal_density)
+    omega = 2.0 * c / L_min
+    xi = 0.5 * beta * omega
+    return safety * 2.0 / omega * (math.sqrt(1.0 + xi * xi) - xi)
+
+
+def check_due(step: int, step_touch: int | None, interval: int) -> bool:
+    """Re-check dt every ``interval`` steps, and at every step of the first ``interval`` after
+    the first touch (the strain increments the look-ahead extrapolates are not known before)."""
+    return step > 0 and (step % interval == 0 or (
+        step_touch is not None and step - step_touch <= interval))
