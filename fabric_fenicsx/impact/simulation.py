@@ -81,11 +81,13 @@ class _Loop:
 class ImpactSimulation:
     """One impact scene on ``comm``: build everything the scene uses, then :meth:`run`.
 
-    out_dir: output folder (created); verbose: progress lines on rank 0.
+    out_dir: output folder (created); verbose: progress lines on rank 0; terms: weak-form terms
+    (:class:`~fabric_fenicsx.fem.terms.MembraneTerm`) added to those the scene switches on, before
+    the stable time step is chosen.
     """
 
     def __init__(self, scene: Scene, out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
-                 verbose: bool = True):
+                 verbose: bool = True, terms=()):
         from fabric_fenicsx.impact.output import ImpactOutput
         from fabric_fenicsx.surrogate.table import Surrogate
 
@@ -99,7 +101,7 @@ class ImpactSimulation:
         self.msh, facet_tags = build_mesh(sc, comm)
         self.membrane = m = Membrane(self.msh, angle=math.radians(sc.material.angle),
                                      quadrature_degree=sc.mesh.quadrature_degree)
-        for term in build_terms(sc):
+        for term in (*build_terms(sc), *terms):
             m.add_term(term)
         self.n_cells_global = comm.allreduce(m.n_cells, op=MPI.SUM)
         self.npc = m.n_points_per_cell

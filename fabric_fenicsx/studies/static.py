@@ -26,10 +26,11 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Callable
 
 import numpy as np
 
+from fabric_fenicsx.material.contract import DamageState, MaterialPoint
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
 from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell
 
@@ -64,18 +65,6 @@ _TITLES = {
 
 
 # ----------------------------------------------------------------------------- material points
-class MaterialPoint(Protocol):
-    """What a scene needs from a material point (unit cell, surrogate, ...).
-
-    ``respond(E1, E2, alpha_hist)`` returns an object with attributes E2, P1, P2 (N/m), V (N),
-    alpha1, alpha2 (the new damage history). A material point that can leave the fill free
-    (``E2=None``: P2 = 0, E2 solved) sets ``supports_free_fill = True``; for any other one the
-    scenes find E2 with P2 = 0 by a root find (:func:`respond_free_fill`).
-    """
-
-    def respond(self, E1: float, E2: float | None, alpha_hist: tuple[float, float]): ...
-
-
 class UnitCellPoint:
     """The yarn unit cell (:class:`~fabric_fenicsx.material.unitcell.UnitCell`) as a material point."""
 
@@ -87,6 +76,40 @@ class UnitCellPoint:
 
     def respond(self, E1, E2, alpha_hist=(1.0, 1.0)):
         return self.cell.respond(E1, E2, alpha_hist=alpha_hist)
+
+    def constitutive_update(self, E1, E2, state: DamageState):
+        """:class:`~fabric_fenicsx.material.contract.MaterialLaw`, one unit-cell solve per point:
+        (P1, P2, new DamageState), P_i signed as the unit cell gives them (Eq. 2-31)."""
+        E1, E2 = np.atleast_1d(E1).astype(float), np.atleast_1d(E2).astype(float)
+        rs = [self.respond(e1, e2, (a1, a2)) for e1, e2, a1, a2
+              in zip(E1, E2, np.atleast_1d(state.alpha1), np.atleast_1d(state.alpha2))]
+        P1, P2, a1, a2 = (np.array([getattr(r, k) for r in rs]) for k in ("P1", "P2", "alpha1", "alpha2"))
+        return P1, P2, DamageState(a1, a2)
+
+    def wave_modulus(self, E1, E2, state: DamageState, dlam: float = 1e-6):
+        """:class:`~fabric_fenicsx.material.contract.MaterialLaw`: per point the largest
+        eigenvalue (N/m) of the symmetric part of dP_i/dlambda_j at frozen damage, by central
+        differences of the unit cell's solve in the stretches (4 solves per point)."""
+        from fabric_fenicsx.surrogate.table import symmetric_eigmax
+
+        def P(e1, e2, alpha):
+            r = self.cell.solve(e1, e2, alpha=alpha)
+            return np.array([r.P1, r.P2])
+
+        E1, E2 = np.atleast_1d(E1).astype(float), np.atleast_1d(E2).astype(float)
+        out = np.empty(E1.size)
+        for k, (e1, e2, a1, a2) in enumerate(zip(E1, E2, np.atleast_1d(state.alpha1),
+                                                np.atleast_1d(state.alpha2))):
+            lam = np.sqrt(1.0 + 2.0 * np.array([e1, e2]))
+            cols = []
+            for j in range(2):
+                step = np.zeros(2)
+                step[j] = dlam
+                Ep, Em = 0.5 * ((lam + step) ** 2 - 1.0), 0.5 * ((lam - step) ** 2 - 1.0)
+                cols.append((P(*Ep, (a1, a2)) - P(*Em, (a1, a2))) / (2.0 * dlam))
+            (t11, t21), (t12, t22) = cols
+            out[k] = symmetric_eigmax(t11, t12, t21, t22)
+        return out
 
 
 def surrogate_point(fabric: Fabric):

@@ -517,8 +517,8 @@ class Surrogate:
 
     def constitutive_update(self, E1, E2, state):
         """:class:`~fabric_fenicsx.material.contract.MaterialLaw`: (P1, P2, new DamageState),
-        tension-only P_i (Eq. 2-31) and alpha_i from Eq. 2-25, as :meth:`update`."""
-        P1, P2, a1, a2 = self.update(E1, E2, state.alpha1, state.alpha2)
+        P_i signed as the unit cell gives them (Eq. 2-31), alpha_i from Eq. 2-25 (:meth:`update`)."""
+        P1, P2, a1, a2 = self.update(E1, E2, state.alpha1, state.alpha2, tension_only=False)
         return P1, P2, DamageState(a1, a2)
 
     def wave_modulus(self, E1, E2, state):
