@@ -308,7 +308,7 @@ def stable_penalty(
     * the membrane stiffness the node also feels: the fabric's step uses a Courant fraction C
       of its own limit, and the combined node stays stable when roughly C^2 + fraction^2 < 1;
     * the one-sided spring: switching on/off inside a step is not energy-neutral. A node
-      dropped on the face (tests/test_projectile.py) keeps its energy to within about
+      dropped on the face (tests/fem/test_projectile.py) keeps its energy to within about
       (omega dt)^2 / 4 (1 % at omega dt = 0.2) but can *gain* energy near the limit (+55 % at
       fraction 0.6 undamped), which :class:`PenaltyContact` forbids by capping the fraction
       at 0.5. With critical damping, fraction 0.5 gives omega dt = 0.41.

@@ -66,8 +66,11 @@ class IsotropicShear(MembraneTerm):
     Not part of the thesis model, which neglects shear stresses (Sec. 2.1); a regularisation of
     the trellising modes and the example of a term. At small strain psi gives both the
     longitudinal and the shear wave modulus G (uniaxial E11: psi = G E11^2 / 2; shear E12:
-    psi = 2 G E12^2), which is what :meth:`wave_modulus` returns; at the yarn strains a fabric
-    reaches (E < 0.1) the tangent stays within 1.3 G, inside the time step's safety factor."""
+    psi = 2 G E12^2), which is what :meth:`wave_modulus` returns. On bilinear quadrilaterals with
+    a lumped mass the highest discrete frequency of this term alone is 1.36-1.38 x the continuum
+    estimate (measured on 4 x 4 to 12 x 12 meshes), so for G up to the yarns' modulus the true
+    stable step is at least 0.97 of the estimate, inside the safety factor (run.dt_safety 0.8);
+    a shear-dominated membrane (G >> yarn modulus) would need a lower safety factor."""
 
     name = "isotropic_shear"
 

@@ -8,7 +8,7 @@ self-similar; its solution is the classical theory of transverse impact on a yar
 (J. C. Smith, F. L. McCrackin and H. F. Schiefer, "Stress-strain relationships in yarns subjected
 to rapid impact loading, Part V: Wave propagation in long textile yarns impacted transversely",
 Textile Research Journal 28 (1958) 288-302, here for a linear stress-strain law; the relations
-below are re-derived from the jump conditions and checked in tests/test_smith.py):
+below are re-derived from the jump conditions and checked in tests/studies/test_smith.py):
 
 * a longitudinal (strain) wave runs along the strip at c = sqrt(k / rho_A) (Lagrangian speed,
   equal to its laboratory speed because the material ahead is at rest); behind it the strip

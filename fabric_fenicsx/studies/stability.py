@@ -820,7 +820,7 @@ def write_report(doc: Path, out: Path, records: list[dict], cases, command: str,
         lines.append("* none.")
     lines += ["", notes, ""]
     lines += ["## Tests", "",
-              "`tests/test_stability.py` runs the fast cases on the study's coarse graded mesh, "
+              "`tests/studies/test_stability.py` runs the fast cases on the study's coarse graded mesh, "
               "cut short (t_end 0.1-0.15 ms, or run.max_steps), plus v1000 as it is, and asserts "
               "their outcome: completed with finite fields and an energy error below 5 %, or "
               "stopped with an `ImpactError` naming step, time and place; "

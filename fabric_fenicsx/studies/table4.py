@@ -126,7 +126,7 @@ def write_outputs(rows: list[dict], out: Path, scene_path: str, overrides: list[
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default=str(Path(__file__).resolve().parents[1] / "demos/scenes/y90.toml"))
+    parser.add_argument("--scene", default=str(Path(__file__).resolve().parents[2] / "demos/scenes/y90.toml"))
     parser.add_argument("--out", default="docs/impact")
     parser.add_argument("--runs", default="out/table4", help="folder of the individual runs")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE")

@@ -1,5 +1,5 @@
 """The membrane's yarn stresses at the quadrature points, compiled: the slack rule, the
-stiffness-proportional viscous stress and its dissipation (see :mod:`fabric_fenicsx.impact.simulation`,
+stiffness-proportional viscous stress and its dissipation (see :mod:`fabric_fenicsx.fem.yarn_stress`,
 class ``YarnStress``), one pass over the points instead of some thirty numpy passes.
 """
 

@@ -1,6 +1,6 @@
 """Tests of the explicit central-difference membrane dynamics (thesis Eq. 2-4 with Eq. 2-5).
 
-Run as a script (`mpirun -n 2 python tests/test_explicit.py`) it prints the energy history of a
+Run as a script (`mpirun -n 2 python tests/fem/test_explicit.py`) it prints the energy history of a
 short free vibration as JSON; `test_mpi_matches_serial` uses that.
 """
 import json
@@ -183,7 +183,7 @@ def test_mpi_matches_serial():
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("runs its own 2-rank job")
     serial = np.array(energy_history())
-    root = pathlib.Path(__file__).resolve().parents[1]
+    root = pathlib.Path(__file__).resolve().parents[2]
     env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
                OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     out = subprocess.run(["mpirun", "--oversubscribe", "-n", "2", sys.executable, __file__],

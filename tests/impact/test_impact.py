@@ -22,7 +22,7 @@ from fabric_fenicsx.impact.chatter import chatter_statistics
 from fabric_fenicsx.impact.simulation import ImpactError, ImpactSimulation, run_impact
 from fabric_fenicsx.impact.scene import build_scene
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 TINY = {
     "description": "tiny test scene",

@@ -20,7 +20,7 @@ import dolfinx.mesh
 
 from fabric_fenicsx.fem import mesh as fm
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 # Coarse graded mesh: builds in ~0.1 s. Size reaches h_edge at r + (h_edge - h_centre)/grading = 60 mm.
 SPEC = fm.MeshSpec(h_centre=4e-3, h_edge=16e-3, refine_radius=0.02, grading=0.3)

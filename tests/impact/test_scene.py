@@ -11,7 +11,7 @@ import pytest
 from fabric_fenicsx.impact.scene import (EDGES, FIELDS, SCHEMA, SceneError, build_scene, load_scene,
                                   parse_override)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "demos" / "scenes"
 
 # Table 3 (and Sec. 4.4.2 for XY0): clamped edges and material angle of each named scene.
