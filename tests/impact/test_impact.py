@@ -164,7 +164,6 @@ def test_wrinkled_yarns_carry_nothing_and_do_not_set_the_time_step(tmp_path):
     sim = ImpactSimulation(tiny(), tmp_path / "out", verbose=False)
     mat = sim.material
     n = mat.w.size
-    one = np.ones(n)
     # biaxial compression near a jump of the unit cell's compressive branch: all slack
     E1, E2 = np.full(n, -0.046), np.linspace(-0.031, -0.027, n)
     P1, P2 = mat.update(E1, E2)
