@@ -10,7 +10,10 @@ removed cell carries no force from any term. A term gives:
 - :meth:`MembraneTerm.wave_modulus`: its stiffness (N/m) as a wave modulus, added to the
   material's to set the explicit stable time step dt ~ h / sqrt(modulus / rho_A);
 - :meth:`MembraneTerm.energy_density`: its stored energy per reference area (J/m^2, UFL), or
-  None where the energy is booked elsewhere (the yarns' by the material).
+  None where the energy is booked elsewhere (the yarns' by the material);
+- :meth:`MembraneTerm.measure` (default ``m.dx``, the yarn stresses' quadrature) and
+  :meth:`MembraneTerm.prepare` (called before every assembly, for terms with coefficients that
+  follow the displacement).
 
 A new term is one small class; see :class:`IsotropicShear` and demos/demo_weak_form.py.
 """
@@ -18,9 +21,12 @@ from __future__ import annotations
 
 import math
 
+import basix
+import numpy as np
 import ufl
+from dolfinx import fem
 
-__all__ = ["MembraneTerm", "YarnTerm", "IsotropicShear"]
+__all__ = ["MembraneTerm", "YarnTerm", "IsotropicShear", "HourglassControl"]
 
 
 class MembraneTerm:
@@ -40,6 +46,13 @@ class MembraneTerm:
     def energy_density(self, m):
         """Stored energy per reference area (J/m^2) as a UFL expression, or None."""
         return None
+
+    def measure(self, m):
+        """The integration measure of the term (default: the membrane's, ``m.dx``)."""
+        return m.dx
+
+    def prepare(self, m) -> None:
+        """Update the term's coefficients from the current displacement (before assembly)."""
 
 
 class YarnTerm(MembraneTerm):
@@ -90,3 +103,72 @@ class IsotropicShear(MembraneTerm):
 
     def wave_modulus(self) -> float:
         return self.G
+
+
+class HourglassControl(MembraneTerm):
+    """Stiffness hourglass control for one-point integrated quadrilaterals (``quadrature_degree``
+    1 for the yarn stresses): psi = (k_hg / 2) |Grad u - <Grad u>|^2, with <Grad u> the cell
+    average of the displacement gradient and k_hg = ratio x modulus (N/m).
+
+    With one Gauss point a bilinear quadrilateral has zero-energy (hourglass) modes; the
+    deviation of Grad u from its cell average is zero for every linear field and non-zero for
+    exactly those modes, so penalising it controls them without resisting any homogeneous
+    deformation (a patch test passes). It is the physical counterpart of Flanagan and
+    Belytschko's stiffness control (Int. J. Numer. Meth. Eng. 17 (1981) 679-706): a fraction
+    ``ratio`` of the yarns' stiffness acting on the in-cell gradient fluctuation only. The
+    average is taken with the 2 x 2 Gauss rule the term is integrated with, so the residual
+    k_hg (Grad u - <Grad u>) : Grad v is the exact variation of the energy. Its wave modulus is
+    bounded by k_hg (see :meth:`wave_modulus`).
+    """
+
+    name = "hourglass"
+    DEGREE = 2
+
+    def __init__(self, ratio: float, modulus: float):
+        for label, value in (("ratio", ratio), ("modulus", modulus)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"HourglassControl {label} must be a finite number >= 0, got {value!r}")
+        self.k = float(ratio) * float(modulus)
+        self._mean = None
+
+    def _setup(self, m) -> None:
+        cell = m.msh.ufl_cell()
+        if cell.cellname() != "quadrilateral":
+            raise ValueError(f"HourglassControl is for quadrilateral meshes, got {cell.cellname()}")
+        space = fem.FunctionSpace(m.msh, ufl.TensorElement("DG", cell, 0, shape=(3, 2)))
+        self._mean = fem.Function(space, name="mean_grad_u")
+        points, weights = basix.make_quadrature(basix.CellType.quadrilateral, self.DEGREE)
+        self._grad = fem.Expression(ufl.grad(m.u), points)
+        detJ = fem.Expression(abs(ufl.JacobianDeterminant(m.msh)), points).eval(m._cells)
+        w = detJ * weights[np.newaxis, :]
+        self._w = w / w.sum(axis=1, keepdims=True)
+        self._dofs = space.dofmap.list.array[:m.n_cells]
+        self._dx = ufl.dx(domain=m.msh, metadata={"quadrature_degree": self.DEGREE,
+                                                  "quadrature_scheme": "default"})
+
+    def prepare(self, m) -> None:
+        if self._mean is None:
+            self._setup(m)
+        grad = self._grad.eval(m._cells).reshape(m.n_cells, self._w.shape[1], 6)
+        self._mean.x.array.reshape(-1, 6)[self._dofs] = np.einsum("cp,cpk->ck", self._w, grad)
+        self._mean.x.scatter_forward()
+
+    def measure(self, m):
+        if self._mean is None:
+            self._setup(m)
+        return self._dx
+
+    def _fluctuation(self, m):
+        if self._mean is None:
+            self._setup(m)
+        return ufl.grad(m.u) - self._mean
+
+    def energy_density(self, m):
+        d = self._fluctuation(m)
+        return 0.5 * self.k * ufl.inner(d, d)
+
+    def integrand(self, m):
+        return self.k * ufl.inner(self._fluctuation(m), ufl.grad(m.v))
+
+    def wave_modulus(self) -> float:
+        return self.k

@@ -1,0 +1,113 @@
+"""One-point quadrilaterals with hourglass control (fem.terms.HourglassControl) against the 2 x 2
+Gauss element: the trellis patch test (yarns at 30 degrees to the element edges, a spatially
+varying trellis shear that leaves both yarn families unstretched), zero force for linear fields,
+control of the hourglass modes, and a residual that is the exact variation of its energy."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fabric_fenicsx.fem.explicit import LinearYarnMaterial
+from fabric_fenicsx.fem.membrane import Membrane, yarn_directions
+from fabric_fenicsx.fem.mesh import uniform_square
+from fabric_fenicsx.fem.terms import HourglassControl
+
+SIDE = 0.1
+K = 1.0e5
+
+
+def trellis(angle, beta=0.3, wavelength=0.1):
+    """u(x) of a Chebyshev net: warp straight, fill rotating by beta sin(2 pi t / wavelength)
+    along itself; both yarn families keep their length exactly (x = s L1 + G(t), |G'| = 1)."""
+    L1, L2 = yarn_directions(angle)
+    phi0 = np.arctan2(L2[1], L2[0])
+    tt = np.linspace(-0.2, 0.2, 400001)
+    g = np.stack([np.cos(phi0 + beta * np.sin(2 * np.pi * tt / wavelength)),
+                  np.sin(phi0 + beta * np.sin(2 * np.pi * tt / wavelength))], axis=1)
+    G = np.zeros_like(g)
+    G[1:] = np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(tt)[:, None], axis=0)
+
+    def u(x):
+        X = x[:2].T
+        s, t = X @ L1, X @ L2
+        moved = s[:, None] * L1 + np.stack([np.interp(t, tt, G[:, 0]), np.interp(t, tt, G[:, 1])], axis=1)
+        out = np.zeros_like(x)
+        out[:2] = (moved - X).T
+        return out
+    return u
+
+
+def spurious_strain(n, angle_deg, q):
+    m = Membrane(uniform_square(n, SIDE, MPI.COMM_WORLD)[0], angle=np.radians(angle_deg), quadrature_degree=q)
+    m.set_displacement(m.interpolate_owned(trellis(np.radians(angle_deg))))
+    E1, E2 = m.yarn_strains()
+    return MPI.COMM_WORLD.allreduce(max(np.abs(E1).max(), np.abs(E2).max()), op=MPI.MAX)
+
+
+def test_trellis_patch_test_locks_with_2x2_gauss_points_and_not_with_one():
+    """Measured: 30 degrees, 2 x 2 points: 4.0e-2, 2.0e-2, 1.0e-2 at h = 12.5, 6.25, 3.1 mm (first
+    order: intra-ply shear locking); one point: 3.8e-3, 1.0e-3, 2.5e-4 (second order), as on
+    aligned meshes (1.9e-3, 5.5e-4, 1.4e-4)."""
+    ns = (8, 16, 32)
+    locked = [spurious_strain(n, 30.0, 2) for n in ns]
+    one_point = [spurious_strain(n, 30.0, 1) for n in ns]
+    aligned = [spurious_strain(n, 0.0, 2) for n in ns]
+    rate = lambda e: np.log2(e[-2] / e[-1])
+    assert 0.9 < rate(locked) < 1.1 and locked[-1] > 5e-3
+    assert 1.9 < rate(one_point) < 2.1 and one_point[-1] < 5e-4
+    assert 1.9 < rate(aligned) < 2.1
+    assert one_point[-1] < 3 * aligned[-1]
+
+
+def membrane_with_control(n=4, ratio=0.05, q=1, angle=0.3):
+    m = Membrane(uniform_square(n, SIDE, MPI.COMM_WORLD)[0], angle=angle, quadrature_degree=q)
+    hg = m.add_term(HourglassControl(ratio, K))
+    return m, hg
+
+
+def force(m, material=None):
+    if material is not None:
+        E1, E2 = m.yarn_strains()
+        m.set_stress(*material.update(E1, E2))
+    return m.internal_force()
+
+
+def test_linear_fields_feel_no_hourglass_force():
+    m, hg = membrane_with_control()
+    H = np.array([[0.02, -0.01], [0.005, 0.03], [0.1, -0.2]])
+    m.set_displacement(m.interpolate_owned(lambda x: H @ x[:2]))
+    assert np.abs(force(m)).max() < 1e-12 * K * SIDE
+    assert abs(m.term_energies()["hourglass"]) < 1e-20
+
+
+def test_the_hourglass_mode_has_stiffness_only_with_control():
+    """u_z = (x y) on every cell, reversed in sign from cell to cell (the checkerboard), is a
+    zero-energy mode of the one-point element in a pretensioned yarn net (the yarns see only the
+    centre gradient, which it leaves at zero); the control gives it energy k |Grad u - <Grad u>|^2 / 2."""
+    m, hg = membrane_with_control(n=4, q=1, angle=0.0)
+    h = SIDE / 4
+    mode = lambda x: np.vstack([0 * x[0], 0 * x[0], 1e-3 * np.cos(np.pi * (x[0] + SIDE / 2) / h)
+                                * np.cos(np.pi * (x[1] + SIDE / 2) / h)])
+    m.set_displacement(m.interpolate_owned(mode))
+    material = LinearYarnMaterial(K, K)
+    E1, E2 = m.yarn_strains()
+    assert np.abs(E1).max() < 1e-15 and np.abs(E2).max() < 1e-15      # invisible at the centre
+    m.terms.remove(hg)
+    assert np.abs(force(m, material)).max() < 1e-12
+    m.add_term(hg)
+    assert np.abs(force(m, material)).max() > 1e-3 * K * 1e-3
+
+
+def test_the_residual_is_the_variation_of_the_energy():
+    m, hg = membrane_with_control(n=4, q=1)
+    rng = np.random.default_rng(1)
+    u0 = rng.normal(scale=1e-3, size=m.n_owned_dofs)
+    du = rng.normal(size=m.n_owned_dofs)
+    m.set_displacement(u0)
+    work = m.global_dot(force(m), du)
+
+    def energy(u):
+        m.set_displacement(u)
+        return m.term_energies()["hourglass"]
+
+    eps = 1e-6
+    assert work == pytest.approx((energy(u0 + eps * du) - energy(u0 - eps * du)) / (2 * eps), rel=1e-6)
