@@ -427,6 +427,69 @@ def uniform_square(n: int, side: float = SIDE_DEFAULT, comm: MPI.Comm = MPI.COMM
     a = side / 2
     msh = dolfinx.mesh.create_rectangle(comm, [np.array([-a, -a]), np.array([a, a])], [n, n],
                                         cell_type=dolfinx.mesh.CellType.quadrilateral)
+    return _tag_square(msh, side)
+
+
+def graded_nodes(lo: float, hi: float, centre: float, h_centre: float, h_edge: float,
+                 refine_radius: float, grading: float) -> np.ndarray:
+    """Node coordinates on [lo, hi] with a node at ``centre``: spacing h_centre within
+    ``refine_radius`` of it, then growing by ``grading`` per unit distance up to h_edge (the
+    size law of the graded gmsh mesh, :class:`MeshSpec`); each side's last interval is
+    stretched or shrunk so that its last node falls on the end."""
+    def side(length: float) -> np.ndarray:
+        d = [0.0]
+        while d[-1] < length:
+            beyond = max(d[-1] - refine_radius, 0.0)
+            d.append(d[-1] + min(h_centre + grading * beyond, h_edge))
+        d = np.array(d)
+        if len(d) > 2 and (d[-1] - length) > 0.5 * (d[-1] - d[-2]):
+            d = d[:-1]                                   # merge a short last interval
+        return d * (length / d[-1])
+    left, right = side(centre - lo), side(hi - centre)
+    return np.concatenate((centre - left[:0:-1], centre + right))
+
+
+def rectilinear_square(x_nodes: np.ndarray, y_nodes: np.ndarray, comm: MPI.Comm = MPI.COMM_WORLD):
+    """The structured quadrilateral mesh of the grid ``x_nodes`` x ``y_nodes`` (a square
+    [-side/2, side/2]^2: both arrays run from -side/2 to side/2), its edges along x and y, with
+    the tags of :func:`load_mesh`. Built on rank 0 and distributed. Collective."""
+    import ufl
+
+    x_nodes, y_nodes = np.asarray(x_nodes, dtype=float), np.asarray(y_nodes, dtype=float)
+    side = float(x_nodes[-1] - x_nodes[0])
+    if not (np.all(np.diff(x_nodes) > 0) and np.all(np.diff(y_nodes) > 0)
+            and np.isclose(y_nodes[-1] - y_nodes[0], side) and np.isclose(x_nodes[0], -side / 2)
+            and np.isclose(y_nodes[0], -side / 2)):
+        raise ValueError("rectilinear_square: x_nodes and y_nodes must increase and both span "
+                         "[-side/2, side/2]")
+    nx, ny = x_nodes.size, y_nodes.size
+    if comm.rank == 0:
+        X, Y = np.meshgrid(x_nodes, y_nodes, indexing="xy")
+        points = np.column_stack((X.ravel(), Y.ravel()))
+        i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="xy")
+        v0 = (j * nx + i).ravel()
+        cells = np.column_stack((v0, v0 + 1, v0 + nx, v0 + nx + 1)).astype(np.int64)
+    else:
+        points, cells = np.zeros((0, 2)), np.zeros((0, 4), dtype=np.int64)
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", "quadrilateral", 1))
+    msh = dolfinx.mesh.create_mesh(comm, cells, points, domain)
+    return _tag_square(msh, side)
+
+
+def aligned_square(spec: MeshSpec, comm: MPI.Comm = MPI.COMM_WORLD):
+    """A graded mesh whose edges run along x and y (the yarns of the 0 and 90 degree scenes):
+    the rectilinear grid of :func:`graded_nodes` in x and y with the sizes of ``spec`` (fine
+    within ``refine_radius`` of ``spec.centre``). Returns ``(msh, cell_tags, facet_tags)``."""
+    a = spec.side / 2
+    sizes = (spec.h_centre, spec.h_edge, spec.refine_radius, spec.grading)
+    return rectilinear_square(graded_nodes(-a, a, spec.centre[0], *sizes),
+                              graded_nodes(-a, a, spec.centre[1], *sizes), comm)
+
+
+def _tag_square(msh, side: float):
+    """(msh, cell_tags, facet_tags) of a square mesh [-side/2, side/2]^2: every cell ``FABRIC``,
+    the edge facets ``LEFT/RIGHT/BOTTOM/TOP``."""
+    a = side / 2
     tdim = msh.topology.dim
     num_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
     cells = np.arange(num_cells, dtype=np.int32)
