@@ -9,11 +9,13 @@ it imports the unit cell and never DOLFINx.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
-from fabric_fenicsx.studies.static import (BACKENDS, DEFAULT_STEP, SCENARIOS, bending_bounds, check_step,
-                                           format_key_points, plot_scenario, run_scenario, write_key_points)
+from fabric_fenicsx.studies.static import (BACKENDS, DEFAULT_STEP, MAX_STEPS, SCENARIOS, bending_bounds,
+                                           check_budget, check_step, format_key_points, plot_scenario,
+                                           run_scenario, write_key_points)
 
 PROG = "fabric-fenicsx static"
 
@@ -26,6 +28,17 @@ def _positive_step(text: str) -> float:
         raise argparse.ArgumentTypeError(f"--step: {err}") from None
 
 
+def _positive_int(text: str) -> int:
+    """``--max-steps`` as an integer >= 1 (argparse type)."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"--max-steps: must be an integer >= 1, got {text!r}")
+    return n
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``fabric-fenicsx static``."""
     parser.add_argument("--scenario", required=True, choices=SCENARIOS, metavar="NAME",
@@ -35,6 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "writes NAME.csv, NAME.png, NAME.json")
     parser.add_argument("--step", type=_positive_step, default=DEFAULT_STEP,
                         help=f"E1 increment (default {DEFAULT_STEP})")
+    parser.add_argument("--max-steps", type=_positive_int, default=MAX_STEPS, metavar="N",
+                        help=f"refuse a --step whose scene would take more than N steps (material-point "
+                             f"solves, about 18 ms each; default {MAX_STEPS:,}, about an hour)")
     parser.add_argument("--fabric", metavar="FILE.toml", help="fabric description (SI units); "
                         "default: Zylon AS of Table 1")
     parser.add_argument("--bending", choices=("max", "min"), default=None,
@@ -55,15 +71,22 @@ def _fabric(args: argparse.Namespace) -> Fabric:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the scene, write its CSV, key points (JSON) and plot, and print the key points."""
+    """Run the scene, write its CSV, key points (JSON) and plot, and print the key points.
+    A step that would take more than ``--max-steps`` steps stops before any work (exit 2)."""
     fabric = _fabric(args)
+    try:
+        check_budget(args.scenario, fabric, args.step, args.max_steps)
+    except ValueError as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     csv_path = out / f"{args.scenario}.csv"
     # The built-in Zylon AS (either --bending preset) takes the Table 1 bounds of B2.
     bounds = bending_bounds(None if args.fabric is None else fabric)
     result = run_scenario(args.scenario, fabric=fabric, step=args.step, backend=args.via,
-                          progress=not args.quiet, csv_path=csv_path, fill_B0_bounds=bounds)
+                          progress=not args.quiet, csv_path=csv_path, fill_B0_bounds=bounds,
+                          max_steps=args.max_steps)
     write_key_points(result, out / f"{args.scenario}.json")
     plot_scenario(result, out / f"{args.scenario}.png")
     print(format_key_points(result))

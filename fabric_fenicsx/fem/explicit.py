@@ -197,6 +197,16 @@ class CentralDifference:
         xi = 0.5 * self.beta * omega_max
         return safety * 2.0 / omega_max * (np.sqrt(1.0 + xi * xi) - xi)
 
+    def evaluated_state(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """(t_n, u^n, v^n): the state at the time of the last evaluated internal force, to which
+        :attr:`energy` and the material's strains and stresses belong. The last step has
+        already moved u to u^{n+1} and v to v^{n+1/2}: u^n = u^{n+1} - dt v^{n+1/2} and
+        v^n = v^{n+1/2} - dt/2 a^n. Before the first step: the initial state."""
+        if self.n_steps == 0:
+            return self.time, self.u.copy(), self.v.copy()
+        acc = (self._f_ext - self._f_int - self._f_damp) * self._inv_mass_free
+        return self.energy.time, self.u - self._du, self.v - (0.5 * self._dt_prev) * acc
+
     def step(self, dt: float, f_ext: np.ndarray | None = None) -> EnergyRecord:
         """Advance u from t_n to t_n + dt under the external nodal forces f_ext (N, owned dofs,
         at t_n; None for no load).  Returns the energies at t_n."""

@@ -1,12 +1,23 @@
-"""Output of an impact run: XDMF time series, history.csv, summary.json and PNG pictures.
+"""Output of an impact run: run.json, XDMF time series, history.csv, summary.json, pictures.
 
-* ``impact.xdmf`` (+ ``.h5``): nodal ``displacement`` and ``velocity`` (3 components) and the
-  cell-wise fields P1, P2 (N/m), E1, E2 and SDV1-3 (Table 2) as area-weighted averages of the
-  quadrature points of each cell (XDMF cannot hold quadrature data). A removed cell
-  (deleted or eroded) has SDV1 = 0 and P1 = P2 = 0: in ParaView, Threshold on SDV1 > 0 shows
-  the holes. Only the fields the scene lists are written, at the scene's interval.
+One run owns its folder's output files (:data:`OWNED_FILES`). At start, rank 0 removes the
+ones an earlier run left there (other files are left alone) and writes ``run.json`` first, with
+a run id that ``summary.json`` repeats: a folder never mixes two runs' results.
+
+* ``run.json``: run id, start time, host, process id, ranks, the scene and its settings;
+  completed at the end with the end time and reason.
+* ``impact.xdmf`` (+ ``impact.h5``): one unstructured grid per written time step carrying every
+  requested field: nodal ``displacement`` and ``velocity`` (3 components, m and m/s) and the
+  cell-wise P1, P2 (N/m), E1, E2 and SDV1-3 (Table 2) as area-weighted averages of the quadrature
+  points of each cell (XDMF cannot hold quadrature data). The mesh is stored once in the HDF5
+  file and every grid refers to it. A removed cell (deleted or eroded) has SDV1 = 0 and NaN in
+  every other cell field, so colour scales over a run ignore it; Threshold SDV1 > 0 hides it.
+  Readable as one dataset with a time series by VTK's ``vtkXdmfReader`` (ParaView's XDMF
+  reader): :func:`read_run`.
+* ``paraview_view.py``: the ParaView view of the run (``pvpython paraview_view.py``), a copy of
+  :mod:`fabric_fenicsx.impact.paraview_view`.
 * ``history.csv``: one row per history interval, written while the run goes (rank 0).
-* ``summary.json``: the run's summary (rank 0).
+* ``summary.json``: the run's summary with its run id (rank 0).
 * ``velocity_history.png`` (projectile velocity and contact force against time) and
   ``damage_map.png`` (final SDV1, SDV2, SDV3 on the reference fabric, holes left blank),
   rendered off-screen with matplotlib and pyvista.
@@ -15,16 +26,29 @@
 from __future__ import annotations
 
 import csv
+import datetime
 import json
+import os
+import socket
+import uuid
 from pathlib import Path
 
 import numpy as np
-from dolfinx import fem, io
 from mpi4py import MPI
 
-__all__ = ["ImpactOutput", "cell_average"]
+__all__ = ["ImpactOutput", "XdmfSeries", "RunFrames", "read_run", "start_run", "cell_average",
+           "OWNED_FILES", "NODAL_FIELDS", "CELL_FIELDS"]
 
+NODAL_FIELDS = ("displacement", "velocity")
 CELL_FIELDS = ("P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3")
+XDMF_NAME = "impact.xdmf"
+DATA_NAME = "impact.bin"
+H5_NAME = "impact.h5"  # written by earlier versions: removed like the others
+VIEWER_NAME = "paraview_view.py"
+OWNED_FILES = ("run.json", "history.csv", "summary.json", XDMF_NAME, DATA_NAME, H5_NAME, VIEWER_NAME,
+               "velocity_history.png", "damage_map.png")
+"""Every file an impact run writes into its folder; a new run removes them first."""
+
 _QUAD_CYCLE = np.array([0, 1, 3, 2])  # DOLFINx tensor-product vertex order -> perimeter order
 
 
@@ -32,6 +56,16 @@ def cell_average(values: np.ndarray, weights: np.ndarray, n_points_per_cell: int
     """Area-weighted average per cell of a point field (cell-major point layout)."""
     w = weights.reshape(-1, n_points_per_cell)
     return (w * np.asarray(values).reshape(-1, n_points_per_cell)).sum(axis=1) / w.sum(axis=1)
+
+
+def output_cell_fields(point_fields: dict, names, weights: np.ndarray, n_points_per_cell: int,
+                       live_cells: np.ndarray) -> dict[str, np.ndarray]:
+    """Cell averages of the named point fields; in a removed cell SDV1 = 0 and the others NaN."""
+    out = {}
+    for name in names:
+        avg = cell_average(point_fields[name], weights, n_points_per_cell)
+        out[name] = np.where(live_cells, avg, 0.0 if name == "SDV1" else np.nan)
+    return out
 
 
 def _json_default(x):
@@ -46,19 +80,230 @@ def _json_default(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
+def _now() -> str:
+    return datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+
+
+def _write_json(path: Path, data: dict) -> None:
+    path.write_text(json.dumps(data, indent=1, default=_json_default))
+
+
+# ---------------------------------------------------------------------------------- run marker
+def start_run(out_dir: Path, comm: MPI.Comm, info: dict | None = None) -> str:
+    """Claim ``out_dir`` for a new run (collective): rank 0 creates it, removes the files an
+    earlier run wrote there (:data:`OWNED_FILES`, nothing else) and writes ``run.json``.
+    Returns the run id (time stamp, process id and a random part), the same on every rank."""
+    out_dir = Path(out_dir)
+    run_id = None
+    if comm.rank == 0:
+        run_id = f"{datetime.datetime.now():%Y%m%dT%H%M%S}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for name in OWNED_FILES:
+            (out_dir / name).unlink(missing_ok=True)
+        _write_json(out_dir / "run.json", {"run_id": run_id, "started": _now(), "host": socket.gethostname(),
+                                           "pid": os.getpid(), "n_ranks": comm.size, **(info or {})})
+    return comm.bcast(run_id, root=0)
+
+
+# ---------------------------------------------------------------------------------- XDMF writer
+_XDMF_HEAD = """<?xml version="1.0"?>
+<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>
+<Xdmf Version="3.0">
+  <Domain>
+    <Grid Name="fabric" GridType="Collection" CollectionType="Temporal">
+"""
+_XDMF_TAIL = """    </Grid>
+  </Domain>
+</Xdmf>
+"""
+
+
+def _data_item(dims: tuple[int, ...], number_type: str, precision: int, seek: int) -> str:
+    """An XDMF DataItem for the array at byte offset ``seek`` of the data file."""
+    d = " ".join(str(n) for n in dims)
+    return (f'<DataItem Dimensions="{d}" NumberType="{number_type}" Precision="{precision}" '
+            f'Format="Binary" Endian="Little" Seek="{seek}">{DATA_NAME}</DataItem>')
+
+
+class XdmfSeries:
+    """``impact.xdmf`` + ``impact.bin``: one unstructured grid per time step with every field.
+
+    The heavy data are raw little-endian arrays appended to ``impact.bin`` (XDMF's "Binary"
+    format: the XML gives each array's type, shape and byte offset); the mesh (reference
+    coordinates and quadrilaterals) is written once and every frame's grid refers to it, each
+    frame adds one float64 array per field. Under MPI the owned values are gathered to rank 0
+    in DOLFINx's global numbering (owned nodes and cells in rank order) and rank 0 writes.
+    The frame's grid is appended to the XML only after its data are flushed, so the XDMF file
+    lists complete frames only and an interrupted run stays readable.
+
+    V: the nodal (3-component P1) function space; n_cells: owned cells;
+    nodal, cell: the names of the nodal and cell fields to write.
+    """
+
+    def __init__(self, out_dir: Path, V, n_cells: int, comm: MPI.Comm, nodal=(), cell=()):
+        self.comm = comm
+        self.rank0 = comm.rank == 0
+        self.path = Path(out_dir) / XDMF_NAME
+        self.nodal, self.cell = tuple(nodal), tuple(cell)
+        self.times: list[float] = []
+        imap = V.dofmap.index_map
+        n_nodes = imap.size_local
+        self._node_counts = np.array(comm.allgather(3 * n_nodes))
+        self._cell_counts = np.array(comm.allgather(n_cells))
+        self.n_nodes = int(self._node_counts.sum()) // 3
+        self.n_cells = int(self._cell_counts.sum())
+        nodes = V.dofmap.list.array.reshape(-1, 4)[:n_cells][:, _QUAD_CYCLE]
+        topology = imap.local_to_global(nodes.ravel()).astype(np.int64)
+        coordinates = V.tabulate_dof_coordinates()[:n_nodes].ravel()
+        self._data = self._xml = None
+        if self.rank0:
+            self._data = open(self.path.with_name(DATA_NAME), "wb")
+            self._xml = open(self.path, "wb")
+            self._xml.write(_XDMF_HEAD.encode())
+            self._tail_at = self._xml.tell()
+            self._xml.write(_XDMF_TAIL.encode())
+            self._xml.flush()
+        self._geometry_at = self._append(coordinates, self._node_counts)
+        self._topology_at = self._append(topology, 4 * self._cell_counts)
+
+    def _append(self, local: np.ndarray, counts: np.ndarray) -> int | None:
+        """Gather the ranks' pieces of one array to rank 0 (collective), which appends it to
+        the data file; returns its byte offset there (rank 0; None elsewhere)."""
+        local = np.ascontiguousarray(local, dtype="<i8" if local.dtype.kind in "iu" else "<f8")
+        whole = np.empty(int(counts.sum()), dtype=local.dtype) if self.rank0 else None
+        if self.comm.size == 1:
+            whole = local
+        else:
+            self.comm.Gatherv(local, (whole, counts) if self.rank0 else None, root=0)
+        if not self.rank0:
+            return None
+        at = self._data.tell()
+        whole.tofile(self._data)
+        return at
+
+    def write(self, t: float, nodal: dict[str, np.ndarray], cell: dict[str, np.ndarray]) -> bool:
+        """Append the frame at time t (s) (collective): ``nodal`` holds the owned node values
+        (3 per node, node-major), ``cell`` the owned cell values of the named fields. A frame at
+        a time not after the last one is skipped (returns False)."""
+        if self.times and t <= self.times[-1]:
+            return False
+        offsets = {name: self._append(nodal[name], self._node_counts) for name in self.nodal}
+        offsets.update({name: self._append(cell[name], self._cell_counts) for name in self.cell})
+        self.times.append(float(t))
+        if self.rank0:
+            self._data.flush()
+            self._xml.seek(self._tail_at)
+            self._xml.write(self._grid_xml(t, offsets).encode())
+            self._tail_at = self._xml.tell()
+            self._xml.write(_XDMF_TAIL.encode())
+            self._xml.truncate()
+            self._xml.flush()
+        return True
+
+    def _grid_xml(self, t: float, offsets: dict[str, int]) -> str:
+        """The XML of one frame: the shared mesh and one attribute per field."""
+        lines = ['      <Grid Name="fabric" GridType="Uniform">',
+                 f'        <Time Value="{t:.17g}" />',
+                 f'        <Topology TopologyType="Quadrilateral" NumberOfElements="{self.n_cells}" '
+                 'NodesPerElement="4">',
+                 f'          {_data_item((self.n_cells, 4), "Int", 8, self._topology_at)}',
+                 '        </Topology>',
+                 '        <Geometry GeometryType="XYZ">',
+                 f'          {_data_item((self.n_nodes, 3), "Float", 8, self._geometry_at)}',
+                 '        </Geometry>']
+        for name in self.nodal:
+            lines += [f'        <Attribute Name="{name}" AttributeType="Vector" Center="Node">',
+                      f'          {_data_item((self.n_nodes, 3), "Float", 8, offsets[name])}',
+                      '        </Attribute>']
+        for name in self.cell:
+            lines += [f'        <Attribute Name="{name}" AttributeType="Scalar" Center="Cell">',
+                      f'          {_data_item((self.n_cells,), "Float", 8, offsets[name])}',
+                      '        </Attribute>']
+        lines.append('      </Grid>')
+        return "\n".join(lines) + "\n"
+
+    def close(self) -> None:
+        """Close the data and XML files (rank 0)."""
+        for f in (self._data, self._xml):
+            if f is not None:
+                f.close()
+        self._data = self._xml = None
+
+
+# ---------------------------------------------------------------------------------- reader
+class RunFrames:
+    """The frames of a run's ``impact.xdmf`` as pyvista grids, read with VTK's vtkXdmfReader.
+
+    ``times``: the frame times (s); ``frames[i]`` (or iteration) gives the unstructured grid
+    of frame i (reference coordinates as points; nodal displacement and velocity, cell fields
+    as in the module docstring), a copy the caller may change.
+    """
+
+    def __init__(self, path: Path):
+        import vtk
+
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FileNotFoundError(f"no XDMF time series at {self.path}: the run wrote none "
+                                    "(output.xdmf_interval = 0 or output.fields = []) or ran elsewhere")
+        self._reader = vtk.vtkXdmfReader()
+        self._reader.SetFileName(str(self.path))
+        self._reader.UpdateInformation()
+        info = self._reader.GetOutputInformation(0)
+        key = vtk.vtkStreamingDemandDrivenPipeline.TIME_STEPS()
+        self.times = np.array(info.Get(key) if info.Has(key) else [], dtype=float)
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def __getitem__(self, i: int):
+        import pyvista
+
+        t = self.times[i]
+        self._reader.UpdateTimeStep(t)
+        data = self._reader.GetOutputDataObject(0)
+        if data is None or not data.IsA("vtkUnstructuredGrid"):
+            kind = data.GetClassName() if data is not None else "nothing"
+            raise ValueError(f"{self.path}: expected one unstructured grid per time step, the reader "
+                             f"gives {kind} (a file from an older version of fabric_fenicsx?)")
+        grid = pyvista.UnstructuredGrid()
+        grid.deep_copy(data)
+        return grid
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))
+
+
+def read_run(out_dir: str | os.PathLike) -> RunFrames:
+    """The frames of the run in ``out_dir`` (its ``impact.xdmf``): see :class:`RunFrames`."""
+    return RunFrames(Path(out_dir) / XDMF_NAME)
+
+
+def viewer_script() -> str:
+    """The source of the ParaView view written beside each run (``paraview_view.py``)."""
+    return (Path(__file__).with_name("paraview_view.py")).read_text()
+
+
+# ---------------------------------------------------------------------------------- the run's writers
 class ImpactOutput:
-    """Writers for one run. Collective: construct, ``frame`` and ``finish`` on every rank."""
+    """Writers for one run. Collective: construct, ``frame`` and ``finish`` on every rank.
+
+    Construction claims the folder (:func:`start_run`: stale output removed, ``run.json``
+    written) before anything else is written. scene: the run's scene, recorded in run.json
+    (optional; its settings reach run.json at the end in any case, from the summary).
+    """
 
     def __init__(self, out_dir: Path, membrane, fields: list[str], comm: MPI.Comm,
-                 history_columns: tuple[str, ...]):
+                 history_columns: tuple[str, ...], scene=None):
         self.out_dir = Path(out_dir)
         self.comm = comm
         self.rank0 = comm.rank == 0
         self.m = membrane
         self.fields = list(fields)
-        if self.rank0:
-            self.out_dir.mkdir(parents=True, exist_ok=True)
-        comm.barrier()
+        info = {"out_dir": str(self.out_dir.resolve()), "fields": self.fields}
+        if scene is not None:
+            info.update(scene=str(scene.source), settings=scene.to_dict())
+        self.run_id = start_run(self.out_dir, comm, info)
         self.columns = history_columns
         self.history_rows: list[list[float]] = []
         self._csv = None
@@ -67,16 +312,14 @@ class ImpactOutput:
             self._csv = csv.writer(self._csv_file)
             self._csv.writerow(history_columns)
         self.xdmf_path = None
-        self._xdmf = None
+        self._series = None
         if self.fields:
-            self.xdmf_path = self.out_dir / "impact.xdmf"
-            self._xdmf = io.XDMFFile(comm, str(self.xdmf_path), "w")
-            self._xdmf.write_mesh(membrane.msh)
-            self._nodal = {name: fem.Function(membrane.V, name=name)
-                           for name in ("displacement", "velocity") if name in self.fields}
-            W = fem.FunctionSpace(membrane.msh, ("DG", 0))
-            self._cell_dofs = W.dofmap.list.array[:membrane.n_cells]
-            self._cell = {name: fem.Function(W, name=name) for name in CELL_FIELDS if name in self.fields}
+            self.xdmf_path = self.out_dir / XDMF_NAME
+            self._series = XdmfSeries(self.out_dir, membrane.V, membrane.n_cells, comm,
+                                      [f for f in NODAL_FIELDS if f in self.fields],
+                                      [f for f in CELL_FIELDS if f in self.fields])
+            if self.rank0:
+                (self.out_dir / VIEWER_NAME).write_text(viewer_script())
 
     # ------------------------------------------------------------------ while running
     def history(self, row: dict) -> None:
@@ -88,31 +331,35 @@ class ImpactOutput:
 
     def frame(self, t: float, u_owned: np.ndarray, v_owned: np.ndarray, point_fields: dict,
               live_cells: np.ndarray) -> None:
-        """Write one XDMF frame at time t (collective)."""
-        if self._xdmf is None:
+        """Write one XDMF frame at time t (collective); u_owned, v_owned: owned nodal dofs, the
+        point fields at the owned quadrature points. A frame at the time of the last is skipped."""
+        if self._series is None:
             return
-        n = self.m.n_owned_dofs
-        for name, values in (("displacement", u_owned), ("velocity", v_owned)):
-            f = self._nodal.get(name)
-            if f is not None:
-                f.x.array[:n] = values
-                f.x.scatter_forward()
-                self._xdmf.write_function(f, t)
-        for name, f in self._cell.items():
-            avg = cell_average(point_fields[name], self.m.quadrature_weights_detJ, self.m.n_points_per_cell)
-            if name in ("SDV1", "P1", "P2"):
-                avg = np.where(live_cells, avg, 0.0)
-            f.x.array[self._cell_dofs] = avg
-            f.x.scatter_forward()
-            self._xdmf.write_function(f, t)
+        m = self.m
+        nodal = {"displacement": u_owned, "velocity": v_owned}
+        cell = output_cell_fields(point_fields, self._series.cell, m.quadrature_weights_detJ,
+                                  m.n_points_per_cell, live_cells)
+        self._series.write(t, nodal, cell)
 
     # ------------------------------------------------------------------ at the end
     def finish(self, summary: dict, live_cells: np.ndarray, point_fields: dict, png: bool) -> None:
-        """summary.json and (optionally) the PNG pictures (collective)."""
+        """summary.json (with the run id, which is also put into ``summary``), run.json
+        completed, and (optionally) the PNG pictures (collective)."""
+        summary["run_id"] = self.run_id
         if self.rank0:
-            (self.out_dir / "summary.json").write_text(json.dumps(summary, indent=1, default=_json_default))
+            _write_json(self.out_dir / "summary.json", summary)
+            self._complete_marker(summary)
         if png:
             self._pictures(summary, live_cells, point_fields)
+
+    def _complete_marker(self, summary: dict) -> None:
+        """run.json gains the end time and reason, and the settings if it lacked them."""
+        path = self.out_dir / "run.json"
+        marker = json.loads(path.read_text())
+        marker.update(finished=_now(), end_reason=summary.get("end_reason"))
+        marker.setdefault("scene", summary.get("scene"))
+        marker.setdefault("settings", summary.get("settings"))
+        _write_json(path, marker)
 
     def _pictures(self, summary: dict, live_cells: np.ndarray, point_fields: dict) -> None:
         m = self.m
@@ -152,8 +399,6 @@ class ImpactOutput:
         plt.close(fig)
 
     def _damage_map(self, gathered, summary: dict) -> None:
-        import os
-
         if not os.environ.get("DISPLAY"):
             os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
         import pyvista
@@ -185,9 +430,9 @@ class ImpactOutput:
         plotter.close()
 
     def close(self) -> None:
-        if self._xdmf is not None:
-            self._xdmf.close()
-            self._xdmf = None
+        if self._series is not None:
+            self._series.close()
+            self._series = None
         if self._csv is not None:
             self._csv_file.close()
             self._csv = None

@@ -7,8 +7,10 @@ states what differs; ``demos/scenes/{y0,y90,xy0,xy45}.toml`` are the four set-up
 Table 3. Units are SI (m, kg, s, m/s); the material angle is in degrees.
 
 Validation happens before any work: an unknown section or key, a value of the wrong type or
-out of range raises :class:`SceneError` with a message listing what is valid. Nothing here
-imports DOLFINx.
+out of range, a scene path that is a folder or not UTF-8 text, a fabric file (``fabric.file``)
+that is missing or invalid, raises :class:`SceneError` with a message listing what is valid;
+an output folder that cannot be written raises :class:`InputError`
+(:func:`check_output_dir`). Nothing here imports DOLFINx.
 """
 
 from __future__ import annotations
@@ -16,13 +18,14 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import tempfile
 import tomllib
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any, Callable
 
-__all__ = ["SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "load_scene", "parse_override",
-           "describe_schema"]
+__all__ = ["InputError", "SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "load_scene", "load_fabric",
+           "check_output_dir", "parse_override", "describe_schema"]
 
 EDGES = ("left", "right", "bottom", "top")
 """Edge names: x = -side/2, x = +side/2, y = -side/2, y = +side/2 (global X-Y, Table 3)."""
@@ -35,8 +38,14 @@ strains E1, E2 and the state variables of Table 2 (SDV1 = 0 for a removed cell).
 FABRICS = ("zylon_as",)
 
 
-class SceneError(ValueError):
-    """A scene file or override is invalid; the message says what is valid."""
+class InputError(ValueError):
+    """An input of a run (scene, fabric file, output folder) is unusable; the message names it
+    and says what is valid."""
+
+
+class SceneError(InputError):
+    """A scene file, an override or the fabric file it names is invalid; the message says what
+    is valid."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,7 +150,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "built-in fabric: zylon_as = 500 denier PBO Zylon AS, Table 1"),
         "file": Key("", optional_text,
                     "TOML fabric file (fabric_fenicsx.material.fabric.Fabric.load) used instead of name; "
-                    "relative to the scene file"),
+                    "relative to the scene file (to the working folder without one); checked before any work"),
         "bending": Key("max", choice("max", "min"),
                        "bending stiffness bound of the built-in fabric (Table 1, Sec. 3.2)"),
     },
@@ -363,25 +372,85 @@ def _cross_check(d: dict[str, dict[str, Any]]) -> None:
 
 
 def load_scene(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
-    """Read and validate a scene TOML file (``None``: defaults only) with overrides."""
+    """Read and validate a scene TOML file (``None``: defaults only) with overrides, and the
+    fabric file it names (``fabric.file``, relative to the scene file's folder, or to the
+    working folder without a scene file), which is read and validated too."""
     if path is None:
-        return build_scene({}, overrides)
+        scene = build_scene({}, overrides)
+        _resolve_fabric_file(scene, Path.cwd())
+        return scene
     path = Path(path)
+    scene = build_scene(_read_toml(path), overrides, str(path))
+    _resolve_fabric_file(scene, path.parent)
+    return scene
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    """The scene file's TOML, or a :class:`SceneError` saying why it cannot be read."""
+    where = f"scene file {str(path)!r}"
+    if path.is_dir():
+        raise SceneError(f"{where} is a folder; give a scene TOML file, e.g. demos/scenes/y90.toml")
     try:
         with open(path, "rb") as f:
-            raw = tomllib.load(f)
+            return tomllib.load(f)
     except FileNotFoundError:
-        raise SceneError(f"scene file {str(path)!r} not found") from None
+        raise SceneError(f"{where} not found") from None
+    except OSError as err:
+        raise SceneError(f"{where} cannot be read: {err.strerror or err}") from None
+    except UnicodeDecodeError as err:
+        raise SceneError(f"{where} is not UTF-8 text (byte {err.object[err.start]:#04x} at offset "
+                         f"{err.start}); save it as UTF-8") from None
     except tomllib.TOMLDecodeError as err:
-        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {err}") from None
-    scene = build_scene(raw, overrides, str(path))
-    fab = scene["fabric"]
-    if fab["file"]:
-        f = Path(fab["file"])
-        if not f.is_absolute():
-            f = path.parent / f
-        if not f.is_file():
-            raise SceneError(f"fabric.file = {fab['file']!r}: no such file ({f})")
-        fab["file"] = str(f)
-        scene.fabric.file = str(f)
-    return scene
+        raise SceneError(f"{where} is not valid TOML: {err}") from None
+
+
+def _resolve_fabric_file(scene: Scene, base: Path) -> None:
+    """Make ``fabric.file`` absolute (relative to ``base``) and check that it reads as a fabric."""
+    given = scene["fabric"]["file"]
+    if not given:
+        return
+    f = Path(given)
+    if not f.is_absolute():
+        f = base / f
+    if not f.is_file():
+        what = "a folder, not a file" if f.is_dir() else "no such file"
+        raise SceneError(f"fabric.file = {given!r}: {what} ({f}); give a fabric TOML file "
+                         f"(fabric_fenicsx.material.fabric.Fabric.load) or \"\" for the built-in fabric.name")
+    scene["fabric"]["file"] = str(f)
+    scene.fabric.file = str(f)
+    load_fabric(scene)
+
+
+def load_fabric(scene: Scene):
+    """The fabric of ``fabric.file`` (a :class:`~fabric_fenicsx.material.fabric.Fabric`), or a
+    :class:`SceneError` naming ``fabric.file`` and what is valid."""
+    from fabric_fenicsx.material.fabric import Fabric
+
+    given = scene["fabric"]["file"]
+    try:
+        return Fabric.load(given)
+    except OSError as err:
+        raise SceneError(f"fabric.file = {given!r}: cannot be read: {err.strerror or err}") from None
+    except ValueError as err:
+        reason = str(err).removeprefix(f"{given}: ")  # Fabric.load names the file first
+        raise SceneError(f"fabric.file = {given!r}: {reason}") from None
+
+
+def check_output_dir(path: str | Path) -> Path:
+    """The output folder, created if missing and shown to be writable, or an :class:`InputError`
+    naming it and saying why it cannot be used (checked before any work)."""
+    p = Path(path)
+    where = f"output folder (--out) {str(p)!r}"
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{where} is an existing file; give a folder (it is created if missing)")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{where} cannot be created: {err.strerror or err}; give a folder in a "
+                         "writable place") from None
+    try:
+        with tempfile.TemporaryFile(dir=p, prefix=".write-test-"):
+            pass
+    except OSError as err:
+        raise InputError(f"{where} is not writable: {err.strerror or err}; give a writable folder") from None
+    return p

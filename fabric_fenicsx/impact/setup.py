@@ -4,7 +4,7 @@ from __future__ import annotations
 from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, load_mesh, uniform_square)
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
 from fabric_fenicsx.fem.terms import IsotropicShear, MembraneTerm
-from fabric_fenicsx.impact.scene import Scene
+from fabric_fenicsx.impact.scene import Scene, load_fabric
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
 
 __all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile"]
@@ -14,9 +14,10 @@ EDGE_TAGS = {"left": LEFT, "right": RIGHT, "bottom": BOTTOM, "top": TOP}
 
 
 def build_fabric(scene: Scene) -> Fabric:
-    """The scene's fabric: a TOML file (``fabric.file``) or a built-in (Table 1)."""
+    """The scene's fabric: a TOML file (``fabric.file``; a bad one raises
+    :class:`~fabric_fenicsx.impact.scene.SceneError` naming it) or a built-in (Table 1)."""
     if scene.fabric.file:
-        return Fabric.load(scene.fabric.file)
+        return load_fabric(scene)
     return zylon_as(bending=scene.fabric.bending)
 
 

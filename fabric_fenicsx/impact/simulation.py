@@ -148,7 +148,7 @@ class ImpactSimulation:
         self.dt_changes: list[DtChange] = []
 
         self.output = ImpactOutput(self.out_dir, m, list(sc.output.fields) if sc.output.xdmf_interval > 0 else [],
-                                   comm, HISTORY_COLUMNS)
+                                   comm, HISTORY_COLUMNS, scene=sc)
         self.ledger = EnergyLedger()
         self.clock = _Clock()
         self._tile_seconds0 = self.surrogate.build_seconds
@@ -221,7 +221,8 @@ class ImpactSimulation:
         try:
             return self.cd.step(loop.dt, f_ext)
         except _STEP_ERRORS as err:
-            raise ImpactError(self._trouble(loop.step, t_n, f"{type(err).__name__}: {err}")) from err
+            raise ImpactError(self._trouble(loop.step, t_n, f"{type(err).__name__}: {err}",
+                                            self._component(err))) from err
 
     def _reduce(self, loop: _Loop, t_n: float, f_p, info, uz_c: float, removed: tuple, check: bool):
         """This step's values summed and maximised over all ranks (two collective calls)."""
@@ -248,7 +249,7 @@ class ImpactSimulation:
             modulus = mat.wave_modulus(self.scene.run.dt_check_interval) if check else 0.0
         except _STEP_ERRORS as err:
             raise ImpactError(self._trouble(loop.step, t_n, f"time-step check: {type(err).__name__}: "
-                                            f"{err}")) from err
+                                            f"{err}", self._component(err))) from err
         self.clock.dt_check += time.perf_counter() - tw
         maxima = reduce_named(self.comm, {
             "z_max": live_z.max() if live_z.size else -math.inf, "modulus": modulus,
@@ -433,10 +434,39 @@ class ImpactSimulation:
                 "SDV1": sdv1, "SDV2": mat.alpha1, "SDV3": mat.alpha2}
 
     def _frame(self, t: float) -> None:
-        self.output.frame(t, self.cd.u, self.cd.v, self.point_fields(), self.live_cells)
+        """One XDMF frame of the state at t_n, the start of the last step: the time at which the
+        point fields (stresses, strains, damage) were evaluated and history.csv took its row.
+        In the step loop t is t_n; at the end of a run (t = t_n + dt) the frame is the last
+        step's t_n, not repeated if already written. The step has already moved u to u_{n+1}
+        and v to v_{n+1/2}: u_n = u_{n+1} - du, v_n = v_{n+1/2} - dt/2 a_n."""
+        t_n, u, v = self.cd.evaluated_state()
+        self.output.frame(t_n, u, v, self.point_fields(), self.live_cells)
 
-    def _trouble(self, step: int, t: float, what: str) -> str:
-        """A message naming step, time, place and the likely fix."""
+    @staticmethod
+    def _component(err: BaseException) -> str:
+        """The component an error of a step comes from: the surrogate's table (a tile), the
+        unit cell (solving a tile) or the membrane (its step: non-finite or invalid values)."""
+        if isinstance(err, SurrogateError):
+            return "table tile"
+        if isinstance(err, UnitCellError):
+            return "unit cell"
+        return "membrane"
+
+    def _fixes(self, component: str) -> str:
+        """What can help when ``component`` failed; only settings that change it."""
+        not_dt = "the time step is not the cause"
+        if component == "table tile":
+            return (f"{not_dt}; a table tile of the surrogate cache holds bad values: delete "
+                    f"{self.surrogate.cache_dir} so that its tiles are solved again")
+        if component == "unit cell":
+            return (f"{not_dt}; the unit cell did not converge while solving a table tile at the "
+                    f"strains above: check the fabric's values (fabric.file)")
+        return ("Likely fixes: lower run.dt_safety, raise run.damping, lower projectile.penalty_fraction, "
+                "or refine the mesh at the impact point (mesh.h_centre)")
+
+    def _trouble(self, step: int, t: float, what: str, component: str = "membrane") -> str:
+        """A message naming step, time, the component that failed (membrane, unit cell, table
+        tile), place and what can help."""
         u = self.cd.u.reshape(-1, 3)
         bad = np.flatnonzero(~np.all(np.isfinite(u), axis=1))
         if bad.size:
@@ -445,11 +475,9 @@ class ImpactSimulation:
             k = int(np.argmax(np.abs(u).sum(axis=1))) if u.size else 0
             place = (f"largest displacement {u[k]} m at reference (x, y) = {self.X[k, :2]} m on rank "
                      f"{self.comm.rank}" if u.size else "no owned nodes")
-        return (f"impact run stopped at step {step}, t = {t:.6e} s: {what}; {place}; "
+        return (f"impact run stopped at step {step}, t = {t:.6e} s: in the {component}: {what}; {place}; "
                 f"dt = {self.cd._dt_prev:.3e} s, projectile at z = {self.state.z:.4e} m moving "
-                f"{-self.state.vz:.3f} m/s. Likely fixes: lower run.dt_safety, raise run.damping, "
-                f"lower projectile.penalty_fraction, or refine the mesh at the impact point "
-                f"(mesh.h_centre); see {self.out_dir / 'history.csv'}")
+                f"{-self.state.vz:.3f} m/s. {self._fixes(component)}; see {self.out_dir / 'history.csv'}")
 
     def _finish(self, end_reason, n_steps, dt, wall, force_t, force_f, energy) -> dict:
         sc, b, cd, comm = self.scene, self.ledger, self.cd, self.comm
@@ -522,8 +550,9 @@ class ImpactSimulation:
                   f"{summary['absorbed_energy']:.2f} J, energy error {b.energy_error:.2e}, removed cells "
                   f"{b.deleted} deleted + {b.eroded} eroded")
         if self.rank0 and self.output.xdmf_path is not None and self.verbose:
-            print(f"impact: XDMF for ParaView: {self.output.xdmf_path.resolve()} "
-                  "(Warp By Vector 'displacement'; Threshold SDV1 > 0 hides the holes)", flush=True)
+            print(f"impact: XDMF for ParaView: {self.output.xdmf_path.resolve()} (one grid per frame "
+                  f"with every field; `pvpython {self.output.xdmf_path.with_name('paraview_view.py').resolve()}` "
+                  "warps it, hides the removed cells and colours by SDV2)", flush=True)
         return summary
 
 

@@ -13,6 +13,20 @@ Illinois variant of regula falsi closes. Where the fixed-point steps creep (targ
 over a long stretch: a snap), the yarn scans g on a grid below u and closes the highest sign
 change. The yarns' coupling enters through target.
 
+These fast steps work yarn by yarn, each assuming its current value is an upper bound of its
+root; the coupling can break that (a yarn settles, then the other one's damage moves its root
+up), and they can then run out of rounds short of tol. Where they do, a guaranteed path ends the
+iteration (:func:`_bracket`). It rests on a bracket that always holds: target_i <= alpha_i^hist
+(the min of Eq. 2-25), so g_i >= 0 at alpha_i = alpha_i^hist, and g_i = -target_i <= 0 at
+alpha_i = 0, whatever the other yarn's value. So for an outer yarn o at x, the inner yarn's
+highest root a*(x) in [0, alpha^hist] exists (scan and regula falsi, :func:`_scan`), and the
+outer residual G(x) = x - target_o(x, a*(x)) is >= 0 at alpha_o^hist and <= 0 at 0: a scan from
+the top and Illinois steps alternating with bisections close its highest sign change to a
+bracket narrower than tol in at most 2 log2(1/tol) steps. Both yarns are tried as the outer one.
+The answer is then a root within tol (status BRACKETED), or, where the bracket holds a jump of
+target (no root: an interpolated target that is nearly singular, a snap), the bracket's upper
+end with its residual (status UNCONVERGED): every point ends with an answer in [0, alpha^hist].
+
 The iteration is scalar code for one point (:func:`solve_point`), written so that numba can
 compile it unchanged: :mod:`fabric_fenicsx.surrogate.kernels.damage` compiles it with the surrogate's
 target for the membrane's quadrature points; the unit cell (:func:`solve_damage`) runs the
@@ -29,8 +43,11 @@ import numpy as np
 Evaluate = Callable[[np.ndarray, np.ndarray], np.ndarray]
 """evaluate(rows, alpha) -> target for those rows: alpha and target of shape (len(rows), 2)."""
 
-CONVERGED, UNCONVERGED = 0, 1
-"""Status of :func:`solve_point`."""
+CONVERGED, UNCONVERGED, BRACKETED = 0, 1, 2
+"""Status of :func:`solve_point`: converged by the fast steps (to tol, or within ACCEPT after
+MAX_ROUNDS rounds); no root within ACCEPT even on the guaranteed path (the answer is the upper
+end of a bracket narrower than tol around a jump of the target); converged on the guaranteed
+path (:func:`_bracket`) after the fast steps had not."""
 FAST_ITERATIONS, SCAN_POINTS, MAX_ROUNDS, ACCEPT = 40, 32, 4, 1e-7
 """The iteration's defaults (see :func:`solve_damage`)."""
 
@@ -57,8 +74,10 @@ def solve_damage(alpha_hist: np.ndarray, target_hist: np.ndarray, evaluate: Eval
     a point that has not got there after ``max_rounds`` is accepted if its residual is below
     ``accept`` (1e-7: the stress error it leaves, 1e-7 of the yarn's intact force, is four
     orders below the surrogate's table error; met where an interpolated target is nearly
-    singular, e.g. a yarn within 2e-5 in stretch of complete failure, r -> 0). Otherwise
-    raises :class:`DamageIterationError` naming the first unconverged point.
+    singular, e.g. a yarn within 2e-5 in stretch of complete failure, r -> 0). Otherwise the
+    guaranteed bracketing of :func:`_bracket` finishes it; only a point with no root even
+    there (a jump of the target larger than ``accept``) raises :class:`DamageIterationError`
+    naming the first such point, its history and its last iterate.
     """
     alpha_hist = np.asarray(alpha_hist, dtype=float)
     target_hist = np.asarray(target_hist, dtype=float)
@@ -68,7 +87,7 @@ def solve_damage(alpha_hist: np.ndarray, target_hist: np.ndarray, evaluate: Eval
     for k in range(alpha_hist.shape[0]):
         status = solve_point((_row_target, (evaluate, k)), alpha_hist[k], target_hist[k], floor, tol,
                              fast_iterations, scan_points, max_rounds, accept, alpha[k], residual)
-        if status != CONVERGED:
+        if status == UNCONVERGED:
             failed.append((k, residual.copy()))
     if failed:
         raise iteration_error(np.array([k for k, _ in failed]), alpha_hist, alpha,
@@ -76,11 +95,41 @@ def solve_damage(alpha_hist: np.ndarray, target_hist: np.ndarray, evaluate: Eval
     return alpha
 
 
+class FallbackLog:
+    """Points whose damage iteration needed the guaranteed path, kept by a caller that must
+    not stop (the surrogate in an impact run): counts of BRACKETED (a root found there) and
+    UNCONVERGED points (no root: a jump of the target; the bracket's upper end was used), and
+    the first ``keep`` of them as dicts (status, E1, E2, alpha_hist, alpha, residual)."""
+
+    def __init__(self, keep: int = 100):
+        self.keep = keep
+        self.bracketed = 0
+        self.unconverged = 0
+        self.states: list[dict] = []
+
+    def record(self, status, E1, E2, alpha_hist, alpha, residual) -> None:
+        """Add the points (arrays over points; alpha_hist, alpha, residual of shape (n, 2))."""
+        status = np.asarray(status)
+        self.bracketed += int(np.count_nonzero(status == BRACKETED))
+        self.unconverged += int(np.count_nonzero(status == UNCONVERGED))
+        for k in range(min(status.size, self.keep - len(self.states))):
+            self.states.append({
+                "status": "bracketed" if status[k] == BRACKETED else "unconverged",
+                "E1": float(E1[k]), "E2": float(E2[k]),
+                "alpha_hist": tuple(map(float, alpha_hist[k])), "alpha": tuple(map(float, alpha[k])),
+                "residual": tuple(map(float, residual[k]))})
+
+    def __repr__(self) -> str:
+        return (f"FallbackLog(bracketed={self.bracketed}, unconverged={self.unconverged}, "
+                f"states kept={len(self.states)})")
+
+
 def iteration_error(rows, alpha_hist, alpha, residual) -> DamageIterationError:
     """The error for the unconverged ``rows`` (residual: alpha - target there)."""
     k = rows[0]
     return DamageIterationError(
-        f"damage iteration did not converge for {rows.size} point(s); first: point {k}, "
+        f"damage iteration (Eq. 2-25) did not converge for {rows.size} point(s), not even by "
+        f"bisection: the target jumps there; first: point {k}, "
         f"alpha_hist={tuple(alpha_hist[k])}, last alpha={tuple(alpha[k])}, "
         f"alpha - target(alpha) = {tuple(residual[0])}", rows=rows, alpha=alpha[rows],
         residual=residual)
@@ -105,8 +154,10 @@ def _row_target(data, a1, a2):
 def solve_point(ctx, hist, target_hist, floor, tol, fast_iterations, scan_points,
                 max_rounds, accept, alpha, residual):
     """The new integrities of one point into ``alpha`` (2,), from ``hist`` = alpha^hist and
-    ``target_hist`` = target(alpha^hist). Returns CONVERGED, or UNCONVERGED with
-    alpha - target(alpha) in ``residual`` (2,); see :func:`solve_damage` for the arguments."""
+    ``target_hist`` = target(alpha^hist): the fast steps, then, if they end with a residual
+    above ``accept``, the guaranteed bracketing (:func:`_bracket`). Returns CONVERGED,
+    BRACKETED or UNCONVERGED; with the last two alpha - target(alpha) is in ``residual`` (2,).
+    Always 0 <= alpha <= hist. See :func:`solve_damage` for the arguments."""
     alpha[0], alpha[1] = hist[0], hist[1]
     if abs(hist[0] - target_hist[0]) <= tol and abs(hist[1] - target_hist[1]) <= tol:
         return CONVERGED
@@ -124,8 +175,102 @@ def solve_point(ctx, hist, target_hist, floor, tol, fast_iterations, scan_points
     _residual(ctx, alpha, g)
     residual[0], residual[1] = g[0], g[1]
     if abs(g[0]) > accept or abs(g[1]) > accept:
-        return UNCONVERGED
+        return _bracket(ctx, hist, floor, tol, scan_points, accept, alpha, residual)
     return CONVERGED
+
+
+def _bracket(ctx, hist, floor, tol, k, accept, alpha, residual):
+    """The guaranteed path (see the module text): nested bracketing with yarn 0, then yarn 1,
+    as the outer yarn; the first that ends at a root within ``accept`` gives ``alpha``, else
+    the one with the smaller residual. Returns BRACKETED or UNCONVERGED, with
+    alpha - target(alpha) in ``residual``."""
+    best = np.empty(2)
+    best_g = np.empty(2)
+    trial = np.empty(2)
+    g = np.empty(2)
+    best_size = math.inf
+    for outer in range(2):
+        _nested(ctx, hist, outer, floor, tol, k, trial, g)
+        s0, s1 = _settled_residual(trial[0], g[0]), _settled_residual(trial[1], g[1])
+        size = math.inf if (math.isnan(s0) or math.isnan(s1)) else max(s0, s1)
+        if size < best_size:
+            best_size = size
+            best[0], best[1], best_g[0], best_g[1] = trial[0], trial[1], g[0], g[1]
+        if size <= accept:
+            break
+    if best_size == math.inf:  # non-finite targets everywhere: report the last try
+        best[0], best[1], best_g[0], best_g[1] = trial[0], trial[1], g[0], g[1]
+    alpha[0], alpha[1] = best[0], best[1]
+    residual[0], residual[1] = best_g[0], best_g[1]
+    return BRACKETED if best_size <= accept else UNCONVERGED
+
+
+def _settled_residual(a, g):
+    """|alpha - target| of a yarn, 0 for a broken one (alpha = 0: :func:`_settled`)."""
+    return 0.0 if a <= 0.0 else abs(g)
+
+
+def _nested(ctx, hist, o, floor, tol, k, trial, g):
+    """One nested bracketing with outer yarn ``o``: into ``trial`` the integrities (x, a*(x))
+    at the outer yarn's highest sign change of G(x) = x - target_o(x, a*(x)) in [0, hist_o]
+    (to a bracket narrower than tol), and into ``g`` alpha - target there."""
+    hi = hist[o]
+    ghi = _outer(ctx, hist, o, hi, floor, tol, k, trial, g)
+    if not ghi > tol:  # the outer yarn keeps its history (G(hist_o) >= 0 always)
+        return
+    lo, glo, has = 0.0, -1.0, False
+    for j in range(k - 1, 0, -1):  # from the top: the highest sign change
+        x = max(hist[o] * (j / k), floor)
+        gx = _outer(ctx, hist, o, x, floor, tol, k, trial, g)
+        if abs(gx) <= tol:
+            return
+        if gx < 0:
+            lo, glo, has = x, gx, True
+            break
+        hi, ghi = x, gx
+        if x <= floor:
+            break
+    if not has and hi <= 2 * floor:  # above its root down to the floor: the yarn is broken
+        _outer(ctx, hist, o, 0.0, floor, tol, k, trial, g)
+        return
+    if not has:  # G(0) = -target_o(0, .) <= 0: the bracket is [0, hi]
+        lo, glo = 0.0, -1.0
+    side = 0
+    for it in range(400):
+        if hi - lo <= tol:
+            break
+        if it % 2 == 1:
+            x = 0.5 * (lo + hi)  # a bisection every other step: the bracket halves
+        else:
+            x = _falsi_or_bisect(lo, glo, hi, ghi)
+        gx = _outer(ctx, hist, o, x, floor, tol, k, trial, g)
+        if abs(gx) <= tol:
+            return
+        if gx > 0:
+            if side == 1:
+                glo *= 0.5  # Illinois
+            hi, ghi, side = x, gx, 1
+        elif gx < 0:
+            if side == -1:
+                ghi *= 0.5
+            lo, glo, side = x, gx, -1
+        else:  # NaN: no sign to bracket with
+            break
+    _outer(ctx, hist, o, hi, floor, tol, k, trial, g)  # the upper end: G(hi) > 0
+
+
+def _outer(ctx, hist, o, x, floor, tol, k, trial, g):
+    """G(x) of :func:`_nested`: the outer yarn o at x, the inner yarn at its highest root
+    below its history (g_inner >= 0 there always), both into ``trial``, alpha - target into
+    ``g``; returns g[o]."""
+    i = 1 - o
+    trial[o] = x
+    trial[i] = hist[i]
+    _residual(ctx, trial, g)
+    if g[i] > tol:
+        _scan(ctx, trial, i, floor, tol, k)
+        _residual(ctx, trial, g)
+    return g[o]
 
 
 def _residual(ctx, alpha, g):

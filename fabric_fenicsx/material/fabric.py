@@ -164,32 +164,37 @@ class Fabric:
 
     @classmethod
     def from_dict(cls, d: dict) -> "Fabric":
-        known = {"name", "area", "density", "warp", "fill", "damage", "yarns_per_metre"}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown fabric keys {sorted(unknown)}; valid keys: {sorted(known)}")
-        for key in ("area", "density", "warp", "fill"):
-            if key not in d:
-                raise ValueError(f"fabric description lacks '{key}' (needs {sorted(known)})")
-
-        def yarn(name: str) -> Yarn:
-            y = dict(d[name])
-            yknown = {"L", "Phi_L", "A0", "B0", "mu_crit"}
-            if set(y) != yknown:
-                raise ValueError(f"[{name}] needs exactly the keys {sorted(yknown)}, got {sorted(y)}")
-            return Yarn(name=name, **{k: float(v) for k, v in y.items()})
-
-        damage = damage_law_from_dict(d["damage"]) if "damage" in d else ExponentialDamage()
-        return cls(warp=yarn("warp"), fill=yarn("fill"), area=float(d["area"]),
-                   density=float(d["density"]), damage=damage,
-                   yarns_per_metre=(float(d["yarns_per_metre"]) if "yarns_per_metre" in d else None),
-                   name=str(d.get("name", "fabric")))
+        """A fabric from a dict of :meth:`to_dict`'s keys (SI units). Every key is checked
+        before anything is built: a ValueError names the key as written in a fabric file
+        (``area``, ``[warp] A0``, ``[damage] law``) and says what is valid."""
+        _check_fabric_keys(d)
+        yarns = {name: _yarn_from_dict(name, d[name]) for name in ("warp", "fill")}
+        numbers = {key: _file_number(key, d[key], unit) for key, unit in _FABRIC_NUMBERS.items() if key in d}
+        try:
+            damage = damage_law_from_dict(d["damage"]) if "damage" in d else ExponentialDamage()
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"[damage] {err}") from None
+        return cls(warp=yarns["warp"], fill=yarns["fill"], area=numbers["area"],
+                   density=numbers["density"], damage=damage,
+                   yarns_per_metre=numbers.get("yarns_per_metre"), name=str(d.get("name", "fabric")))
 
     @classmethod
     def load(cls, path: str | Path) -> "Fabric":
-        """Read a fabric from a TOML file (keys as in :meth:`to_dict`, SI units)."""
+        """Read a fabric from a TOML file (keys as in :meth:`to_dict`, SI units). A file that is
+        not UTF-8 TOML or not a valid fabric raises ValueError starting with the file's path;
+        a file that cannot be opened raises OSError."""
         with open(path, "rb") as f:
-            return cls.from_dict(tomllib.load(f))
+            raw = f.read()
+        try:
+            data = tomllib.loads(raw.decode("utf-8"))
+        except UnicodeDecodeError as err:
+            raise ValueError(f"{path}: not UTF-8 text (byte {raw[err.start]:#04x} at offset {err.start})") from None
+        except tomllib.TOMLDecodeError as err:
+            raise ValueError(f"{path}: not valid TOML: {err}") from None
+        try:
+            return cls.from_dict(data)
+        except ValueError as err:
+            raise ValueError(f"{path}: {err}") from None
 
     def save(self, path: str | Path) -> None:
         """Write the fabric as TOML (SI units), readable by :meth:`load`."""
@@ -203,6 +208,61 @@ class Fabric:
                          f"B0 = {y.B0*1e6:.4f} N mm^2, mu_crit = {y.mu_crit}")
         return "\n".join(lines)
 
+
+# ----------------------------------------------------------------------------- reading files
+_YARN_KEYS = {
+    "L": ("half-segment length", "m", "> 0", lambda v: v > 0),
+    "Phi_L": ("reference angle", "rad", "in [0, pi/2)", lambda v: 0 <= v < math.pi / 2),
+    "A0": ("stretch stiffness", "N", "> 0", lambda v: v > 0),
+    "B0": ("bending stiffness", "N m^2", "> 0", lambda v: v > 0),
+    "mu_crit": ("critical stretch", "", "> 1", lambda v: v > 1),
+}
+"""Keys of a ``[warp]`` / ``[fill]`` table: meaning, unit, what is valid and its test."""
+_FABRIC_NUMBERS = {"area": "m^2", "density": "kg/m^3", "yarns_per_metre": "1/m"}
+_FABRIC_KEYS = ("name", "area", "density", "warp", "fill", "damage", "yarns_per_metre")
+_REQUIRED = ("area", "density", "warp", "fill")
+_FILE_LAYOUT = ("area (m^2) and density (kg/m^3), tables [warp] and [fill] with L (m), Phi_L (rad), "
+                "A0 (N), B0 (N m^2), mu_crit; optional: name, yarns_per_metre (1/m), [damage] with law = "
+                "\"exponential\" (beta, width) or \"bundle\" (d0_over_h0, n, seed)")
+
+
+def _check_fabric_keys(d) -> None:
+    """Unknown or missing top-level keys of a fabric description, as a ValueError."""
+    if not isinstance(d, dict):
+        raise ValueError(f"a fabric description must be a table of keys, got {d!r}")
+    unknown = sorted(set(d) - set(_FABRIC_KEYS))
+    if unknown:
+        raise ValueError(f"unknown key(s) {unknown}; a fabric file has {_FILE_LAYOUT}")
+    missing = [k for k in _REQUIRED if k not in d]
+    if missing:
+        raise ValueError(f"missing key(s) {missing}; a fabric file has {_FILE_LAYOUT}")
+
+
+def _file_number(key: str, value, unit: str) -> float:
+    """A positive finite number of a fabric file, or a ValueError naming the key."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{key} = {value!r}: must be a number ({unit})")
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{key} = {value!r}: must be a positive finite number ({unit})")
+    return float(value)
+
+
+def _yarn_from_dict(name: str, y) -> Yarn:
+    """The ``[warp]`` or ``[fill]`` table of a fabric file as a :class:`Yarn`, every key checked."""
+    if not isinstance(y, dict):
+        raise ValueError(f"{name} must be a table [{name}] with {sorted(_YARN_KEYS)}, got {y!r}")
+    if set(y) != set(_YARN_KEYS):
+        missing, unknown = sorted(set(_YARN_KEYS) - set(y)), sorted(set(y) - set(_YARN_KEYS))
+        raise ValueError(f"[{name}] needs exactly the keys {sorted(_YARN_KEYS)}"
+                         + (f"; missing {missing}" if missing else "") + (f"; unknown {unknown}" if unknown else ""))
+    values = {}
+    for key, (meaning, unit, valid, ok) in _YARN_KEYS.items():
+        v = y[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not ok(v):
+            raise ValueError(f"[{name}] {key} = {v!r}: must be a finite number {valid} "
+                             f"({meaning}{', ' + unit if unit else ''})")
+        values[key] = float(v)
+    return Yarn(name=name, **values)
 
 def _to_toml(d: dict) -> str:
     """Minimal TOML writer for a two-level dict of numbers and strings."""

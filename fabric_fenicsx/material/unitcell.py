@@ -181,7 +181,9 @@ class UnitCell:
     max_iter : Newton iterations per attempt.
 
     Calls along a loading path are warm-started from the previous solution. If Newton
-    fails from there, the strain increment is subdivided (continuation) before giving up.
+    fails from there, the strain increment is subdivided (continuation); if that fails too,
+    both are repeated with each yarn's equilibrium measured in its own damaged force scale
+    (see :meth:`_solve`) before giving up.
     """
 
     def __init__(self, fabric: Fabric, n_elements: int | None = None, tol: float = 1e-12,
@@ -248,8 +250,9 @@ class UnitCell:
         try:
             alpha = solve_damage(alpha_hist[None], target[None], evaluate, floor=2 * ALPHA_BROKEN, tol=tol)[0]
         except DamageIterationError as err:
-            raise UnitCellError(f"damage iteration failed at E1={res.E1:.6g}, E2={res.E2:.6g}: {err}. "
-                                f"Reduce the strain increment along the path.") from err
+            raise UnitCellError(f"unit cell: {err}; at E1={res.E1:.6g}, E2={res.E2:.6g}. Smaller "
+                                f"strain steps along the path change alpha_hist and may pass the "
+                                f"jump") from err
         return self._solve(lam1, lam2, alpha)
 
     # ------------------------------------------------------------------ frozen-damage solve
@@ -268,27 +271,62 @@ class UnitCell:
         return math.sqrt(1.0 + 2.0 * E1), lam2, a
 
     def _solve(self, lam1, lam2, alpha) -> UnitCellResult:
+        """The frozen-damage equilibrium (stationarity of the Lagrangian of the module text:
+        Eq. 2-17, 2-29/2-30, A.3-A.5) at the stretches (lam1, lam2), by three paths in turn:
+
+        1. Newton with active-set contact from the previous solution (:meth:`_newton_active_set`);
+        2. continuation in the stretches from the reference state (:meth:`_continuation`);
+        3. both again with each yarn's equilibrium measured in its own force scale
+           (``yarn_scale``: the moment rows of yarn i divided by alpha_i A^0 L instead of
+           A^0 L in the line search's merit and the convergence test, see :meth:`_newton`).
+
+        Why path 3: a yarn at alpha_i carries moments of order alpha_i A^0 L, so in the merit
+        of paths 1-2 its own balance counts alpha_i times less than the intact yarn's. Near
+        r -> 0 (the table's r = 0 node, alpha = R_LIMIT = 1e-4) with B at its lower bound and the
+        other yarn compressed out of contact (E1 = -0.034, E2 >= 0.064), contact release leaves
+        the weak, nearly straight yarn unbalanced by V/F_2 ~ 5e-4 rad; the full Newton step
+        rotates it back, which raises its length constraint (Eq. A.5) quadratically, above the
+        merit the weak yarn's moments show: the line search cuts the step to 1/64 and Newton
+        creeps (scaled residual 2e-9 after 30 iterations, in the whole lower-bound table the
+        only three nodes neither path 1 nor 2 solved). In its own scale the weak yarn's
+        imbalance dominates the merit and the full step is taken (9 iterations); with it every
+        node of the lower-bound table (134,400 solves) is solved. Paths 1-2 are kept first
+        because they give every state they solve the same digits as before (measured: the
+        own-scale merit as the only one moves damaged upper-bound nodes by up to 8e-8
+        relative; with it as path 3, 11,264 cached upper-bound nodes come out bit-identical),
+        so cached tables (``tiles.FORMAT_VERSION``) and published results stay valid.
+        """
         alpha = np.where(alpha < ALPHA_BROKEN, 0.0, alpha)
         lam_target = np.array([lam1, np.nan if lam2 is None else lam2])
         start = self._last
         if start is not None and (lam2 is None) != np.isnan(start[0][1]):
             start = None
-        state = start[2].copy() if start else self._reference.copy()
-        try:
-            state, its = self._newton_active_set(state, lam_target, alpha)
-        except UnitCellError:
+        first = start[2] if start else self._reference
+        failure = None
+        damaged = bool(np.any((alpha > 0.0) & (alpha < 1.0)))
+        for yarn_scale in ((False, True) if damaged else (False,)):
             try:
-                state, its = self._continuation(lam_target, alpha)
+                state, its = self._newton_active_set(first.copy(), lam_target, alpha, yarn_scale)
+                break
+            except UnitCellError:
+                pass
+            try:
+                state, its = self._continuation(lam_target, alpha, yarn_scale=yarn_scale)
+                break
             except UnitCellError as err:
-                E = [None if np.isnan(l) else 0.5 * (l * l - 1.0) for l in lam_target]
-                raise UnitCellError(
-                    f"unit cell not solved at E1={E[0]}, E2={E[1]}, alpha={tuple(map(float, alpha))}, "
-                    f"neither from the previous solution nor by continuation from zero strain; "
-                    f"last failure: {err}") from err
+                failure = err
+        else:
+            E = [None if np.isnan(l) else 0.5 * (l * l - 1.0) for l in lam_target]
+            raise UnitCellError(
+                f"unit cell: equilibrium not found at E1={E[0]}, E2={E[1]}, "
+                f"alpha={tuple(map(float, alpha))} from the previous solution, by continuation "
+                f"from zero strain, or with each yarn's balance in its own force scale; last "
+                f"failure: {failure}. No setting is known to help: please report this "
+                f"state") from failure
         self._last = (lam_target, alpha, state)
         return self._result(state, lam_target, alpha, its)
 
-    def _continuation(self, lam_to, alpha, max_depth=12):
+    def _continuation(self, lam_to, alpha, max_depth=12, yarn_scale=False):
         """Reach lam_to from the reference state in substeps, halving a step that fails."""
         state = self._reference.copy()
         lam_from = np.where(np.isnan(lam_to), np.nan, 1.0)
@@ -301,8 +339,8 @@ class UnitCell:
             lam = lam_from + t_next * (lam_to - lam_from)
             lam = np.where(np.isnan(lam_to), np.nan, lam)
             try:
-                state_new, its = self._newton_active_set(state.copy(), lam, alpha)
-            except UnitCellError as err:
+                state_new, its = self._newton_active_set(state.copy(), lam, alpha, yarn_scale)
+            except UnitCellError:
                 depth += 1
                 dt *= 0.5
                 if depth > max_depth:
@@ -312,7 +350,7 @@ class UnitCell:
             dt = min(0.25, 2 * dt)
         return state, total
 
-    def _newton_active_set(self, state: _State, lam, alpha):
+    def _newton_active_set(self, state: _State, lam, alpha, yarn_scale=False):
         broken = alpha == 0.0
         if broken.any():
             state.contact = False
@@ -323,7 +361,7 @@ class UnitCell:
                 state.F2 = 0.0
         total = 0
         for _ in range(4):
-            state, its = self._newton(state, lam, alpha)
+            state, its = self._newton(state, lam, alpha, yarn_scale)
             total += its
             if broken.any():
                 return state, total
@@ -335,7 +373,8 @@ class UnitCell:
                 continue
             return state, total
         raise UnitCellError(
-            f"contact status cycles between contact and separation at lambda={tuple(lam)}, alpha={tuple(alpha)}")
+            f"unit cell: contact status cycles between contact and separation at "
+            f"lambda={tuple(lam)}, alpha={tuple(alpha)}")
 
     def _gap(self, state: _State, alpha) -> float:
         """D = D_1 + D_2 (Eq. A.3/A.4)."""
@@ -390,7 +429,11 @@ class UnitCell:
             free[2 * n + 2] = False
         return free
 
-    def _newton(self, state: _State, lam, alpha):
+    def _newton(self, state: _State, lam, alpha, yarn_scale=False):
+        """Newton's method with a backtracking (Armijo) line search on the scaled residual
+        norm: moment rows (Eq. 2-17/A.10) over A^0 L, constraint rows (Eq. A.5, A.3) over L;
+        with ``yarn_scale`` yarn i's moment rows and force step over alpha_i A^0 L and
+        alpha_i A^0 (its own damaged scale, see :meth:`_solve`)."""
         n = self.n_elements
         z = np.concatenate((state.phi1, state.phi2, [state.F1, state.F2, state.V]))
         free = self._free_mask(state, lam, alpha)
@@ -398,6 +441,11 @@ class UnitCell:
         scale[2 * n:] = self._force_scale
         rscale = np.full(2 * n + 3, self._force_scale * self.yarns[0].yarn.L)
         rscale[2 * n:] = self.yarns[0].yarn.L
+        if yarn_scale:
+            for i in range(2):
+                if 0.0 < alpha[i] < 1.0:
+                    rscale[i * n:(i + 1) * n] *= alpha[i]
+                    scale[2 * n + i] *= alpha[i]
 
         def merit(zz):
             R, J = self._assemble(zz, lam, alpha, free)
@@ -440,9 +488,9 @@ class UnitCell:
 
     def _failure(self, what, lam, alpha, residual, its) -> str:
         E = [(l * l - 1) / 2 if not np.isnan(l) else None for l in lam]
-        return (f"Newton failed ({what}) at E1={E[0]}, E2={E[1]}, alpha={tuple(map(float, alpha))}: "
-                f"scaled residual {residual:.3g} after {its} iterations. Try smaller strain "
-                f"increments along the path or more elements.")
+        return (f"unit cell: Newton failed ({what}) at E1={E[0]}, E2={E[1]}, "
+                f"alpha={tuple(map(float, alpha))}: scaled residual {residual:.3g} after {its} "
+                f"iterations")
 
     def _result(self, state: _State, lam, alpha, its) -> UnitCellResult:
         n = self.n_elements

@@ -50,6 +50,12 @@ BENDING_RATIO = 5.0
 E2_MIN = -0.45
 """Lower end of the E2 search in the free-fill root find (E > -0.5 for any stretch)."""
 LEGS = ("load", "unload", "reload")
+MAX_STEPS = 200_000
+"""Default limit on a scene's E1 steps (material-point solves; :func:`estimate_steps`). One step
+takes about 15-20 ms on one core (measured, unit cell), so this is about an hour; the default
+step gives a few hundred steps, and a step below ~1e-6 resolves nothing the figures show."""
+PROGRESS_INTERVAL = 1.0
+"""Wall seconds between progress lines."""
 
 _LOADED = {  # yarns whose complete failure ends a monotone path (0 = warp, 1 = fill)
     "uniaxial-strain": (0,), "load-unload": (0,), "equibiaxial": (0, 1),
@@ -247,8 +253,9 @@ class ScenarioResult:
 class _Recorder:
     """Collects rows; with a CSV path writes and flushes each row as it comes."""
 
-    def __init__(self, columns, csv_path=None, progress=False, label=""):
+    def __init__(self, columns, csv_path=None, progress=False, label="", expected=None):
         self.columns = tuple(columns)
+        self.expected = expected  # upper bound of the rows (estimate_steps), for the progress
         self.rows: dict[str, list] = {c: [] for c in self.columns}
         self.file = None
         if csv_path is not None:
@@ -267,11 +274,19 @@ class _Recorder:
                                      for v in (row[c] for c in self.columns)) + "\n")
             self.file.flush()
         now = time.perf_counter()
-        if self.progress and now - self.t_last > 1.0:
+        if self.progress and now - self.t_last >= PROGRESS_INTERVAL:
             self.t_last = now
             print(f"{self.label}: E1 = {row['E1']:.4f}, alpha = ({row['alpha1']:.3f}, "
-                  f"{row['alpha2']:.3f}), {len(self.rows['E1'])} rows, {now - self.t0:.1f} s",
-                  file=sys.stderr, flush=True)
+                  f"{row['alpha2']:.3f}), {self._done(now)}", file=sys.stderr, flush=True)
+
+    def _done(self, now: float) -> str:
+        """Rows done (of at most ``expected``, with the time left at most) and seconds so far."""
+        n, elapsed = len(self.rows["E1"]), now - self.t0
+        if not self.expected:
+            return f"{n} rows, {elapsed:.1f} s"
+        left = elapsed / n * max(self.expected - n, 0) if n else 0.0
+        return (f"{n} of at most {self.expected} steps ({100 * n / self.expected:.0f} %), "
+                f"{elapsed:.1f} s, at most {left:.0f} s left")
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {c: np.array(v, dtype=object) if c == "leg" else np.asarray(v, dtype=float)
@@ -424,6 +439,62 @@ def check_step(step) -> float:
     return s
 
 
+def estimate_steps(name: str, fabric: Fabric | None, step: float, unload_at: float = UNLOAD_E1) -> int:
+    """An upper bound of the E1 steps (material-point solves) scene ``name`` takes at ``step``,
+    known before it runs: its CSV rows plus, for load-unload, the reference monotone path.
+
+    A monotone path (:func:`_path_steps`) ends EXTRA_STEPS after the loaded yarns' complete
+    failure. load-unload adds its load and unload legs to unload_at and the reference path;
+    bending runs two paths. The bound is about 1.4 times the steps taken for Zylon AS."""
+    path = _path_steps(name, fabric, step)
+    if name == "load-unload":
+        leg = math.floor(unload_at / step + 1e-9) + 2  # the grid and unload_at itself
+        return leg + (leg - 1) + 2 * path
+    return 2 * path if name == "bending" else path
+
+
+def _path_steps(name: str, fabric: Fabric | None, step: float) -> int:
+    """Steps of one monotone path, at most: complete failure of the loaded yarns comes at the
+    latest at the first grid point at or beyond E1 = E_fail = ((mu_complete L / w)^2 - 1) / 2
+    (a yarn is at least as stretched as its projection, lambda w / L; mu_complete from the
+    damage law; the crimp is pulled out before, so the path ends earlier), then EXTRA_STEPS
+    more; and at E1_CAP in any case."""
+    base = zylon_as("max") if fabric is None else fabric
+    law = base.damage
+    E_fail = [0.5 * ((law.mu_complete(y.mu_crit) * y.L / y.w) ** 2 - 1.0) for y in base.yarns]
+    E_end = max(E_fail[i] for i in _LOADED[name])
+    return min(math.ceil(E_end / step - 1e-9) + EXTRA_STEPS, math.floor(E1_CAP / step + 1e-9)) + 1
+
+
+def check_budget(name: str, fabric: Fabric | None, step: float, max_steps: int | None = MAX_STEPS,
+                 unload_at: float = UNLOAD_E1) -> int:
+    """:func:`estimate_steps`, or a ValueError if it exceeds ``max_steps`` (None: no limit) that
+    gives the estimate, its time and the smallest step within the limit."""
+    n = estimate_steps(name, fabric, step, unload_at)
+    if max_steps is not None and n > max_steps:
+        smallest = step * n / max_steps
+        raise ValueError(
+            f"--step {step:g}: scene {name} would take up to {n:,} steps (material-point solves), "
+            f"about {_duration(n * 0.018)} at ~18 ms each, more than the limit of {max_steps:,}; "
+            f"use --step {_round_up(smallest)} or larger (default {DEFAULT_STEP:g}), or raise the limit "
+            f"with --max-steps")
+    return n
+
+
+def _duration(seconds: float) -> str:
+    """``seconds`` in the largest unit that gives at least 2 of it."""
+    for unit, size in (("days", 86400.0), ("hours", 3600.0), ("minutes", 60.0)):
+        if seconds >= 2 * size:
+            return f"{seconds / size:.0f} {unit}"
+    return f"{seconds:.0f} s"
+
+
+def _round_up(x: float) -> str:
+    """``x`` rounded up to two significant digits, as text."""
+    exponent = math.floor(math.log10(x)) - 1
+    return f"{math.ceil(x / 10.0 ** exponent - 1e-9) * 10.0 ** exponent:.2g}"
+
+
 def bending_bounds(fabric: Fabric | None = None) -> tuple[float, float]:
     """Upper and lower bound of the fill's bending stiffness B2 (N m^2) for the bending scene.
 
@@ -438,7 +509,8 @@ def bending_bounds(fabric: Fabric | None = None) -> tuple[float, float]:
 def run_scenario(name: str, fabric: Fabric | None = None, step: float = DEFAULT_STEP,
                  backend=None, progress: bool = True, csv_path=None,
                  unload_at: float = UNLOAD_E1,
-                 fill_B0_bounds: tuple[float, float] | None = None) -> ScenarioResult:
+                 fill_B0_bounds: tuple[float, float] | None = None,
+                 max_steps: int | None = MAX_STEPS) -> ScenarioResult:
     """Run one static scene on one material point (thesis section 3.3).
 
     Parameters
@@ -455,6 +527,8 @@ def run_scenario(name: str, fabric: Fabric | None = None, step: float = DEFAULT_
     unload_at : E1 at which ``load-unload`` unloads.
     fill_B0_bounds : (upper, lower) fill bending stiffness (N m^2) of ``bending``; default
         :func:`bending_bounds` of the given fabric (Table 1 if ``fabric`` is None).
+    max_steps : refuse (ValueError, before any solve) a ``step`` whose :func:`estimate_steps`
+        exceeds this; None = no limit.
 
     Returns a :class:`ScenarioResult`; its ``key_points`` are those of :func:`path_key_points`
     plus, per scene, ``cap_reached``, the unloading checks or the per-B2 results.
@@ -469,8 +543,11 @@ def run_scenario(name: str, fabric: Fabric | None = None, step: float = DEFAULT_
     base = zylon_as("max") if fabric is None else fabric
     if not isinstance(base, Fabric):
         raise ValueError(f"fabric must be a Fabric, got {fabric!r}")
+    expected = check_budget(name, base, step, max_steps, unload_at)
+    if name == "load-unload":  # the reference path is not recorded
+        expected -= _path_steps(name, base, step)
     extra_cols = {"load-unload": ("leg",), "bending": ("B2",)}.get(name, ())
-    rec = _Recorder(COLUMNS + extra_cols, csv_path, progress, name)
+    rec = _Recorder(COLUMNS + extra_cols, csv_path, progress, name, expected)
     loaded = _LOADED[name]
     kp: dict = {"scenario": name}
     reference = None

@@ -34,9 +34,9 @@ from fabric_fenicsx.surrogate.kernels import damage as damage_kernel
 from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
 from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
-from fabric_fenicsx.surrogate.tiles import (QUANTITIES, Progress, cache_key, default_cache_dir, load_tile,
-                                  save_tile, solve_blocks)
-from fabric_fenicsx.material.damage_solver import CONVERGED, iteration_error
+from fabric_fenicsx.surrogate.tiles import (QUANTITIES, Progress, cache_key, cache_problem, default_cache_dir,
+                                  load_tile, save_tile, solve_blocks, warn_unwritable)
+from fabric_fenicsx.material.damage_solver import BRACKETED, UNCONVERGED, FallbackLog
 from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell
 
 _Q = {name: k for k, name in enumerate(QUANTITIES)}
@@ -110,7 +110,9 @@ class Surrogate:
     n_elements : unit-cell elements per half-yarn (default of :class:`UnitCell`).
     tile : grid nodes per tile side; tiles are solved only when a lookup needs them.
     cache_dir : where solved tiles are kept (default :func:`tiles.default_cache_dir`);
-        ``False`` disables the disk cache.
+        ``False`` disables the disk cache. A cache that cannot be written (read-only, a file,
+        a full disk) is still read; new tiles then stay in memory, said once by a
+        :class:`~fabric_fenicsx.surrogate.tiles.CacheWarning`.
     workers : processes for solving tiles (default: all cores).
     progress : show a progress bar while solving tiles.
     """
@@ -176,10 +178,15 @@ class Surrogate:
                     "tile": self.tile, "n_elements": self.n_elements, "tol": cell.tol,
                     "alpha_broken": ALPHA_BROKEN, "r_limit": R_LIMIT, "r_spacing": "sqrt"}
         self.key = cache_key(fabric.to_dict(), settings)
-        if cache_dir is False:
-            self.cache_dir = None
-        else:
-            self.cache_dir = (Path(cache_dir) if cache_dir else default_cache_dir()) / f"surrogate-{self.key}"
+        self.cache_dir, self.cache_writable = None, False
+        if cache_dir is not False:
+            root = Path(cache_dir) if cache_dir else default_cache_dir()
+            self.cache_dir = root / f"surrogate-{self.key}"
+            # the root first: its reason is the one the command line's pre-flight check gives
+            problem = cache_problem(root) or cache_problem(self.cache_dir)
+            self.cache_writable = problem is None
+            if problem:
+                warn_unwritable(problem)
         self.stats = RangeStats()
         self.solves = 0
         self.build_seconds = 0.0
@@ -188,8 +195,13 @@ class Surrogate:
     def _tile_nodes(self, a: int) -> np.ndarray:
         return np.arange(a * self.tile, min((a + 1) * self.tile, self.nE))
 
+    @staticmethod
+    def _tile_name(layer: str, a: int, b: int) -> str:
+        """A tile's name: its layer and place in the table (its file's stem, in its checksum)."""
+        return f"{layer}_{a}_{b}"
+
     def _tile_path(self, layer: str, a: int, b: int) -> Path | None:
-        return None if self.cache_dir is None else self.cache_dir / f"{layer}_{a}_{b}.npz"
+        return None if self.cache_dir is None else self.cache_dir / f"{self._tile_name(layer, a, b)}.npz"
 
     def ensure_tiles(self, layer: str, tiles) -> None:
         """Solve (or load from the cache) the given tiles [(a, b), ...] of ``layer``."""
@@ -207,7 +219,7 @@ class Surrogate:
             shape = ((len(ia), len(jb), len(QUANTITIES)) if layer == "intact"
                      else (2, len(ia), len(jb), nr - 1, len(QUANTITIES)))
             path = self._tile_path(layer, a, b)
-            values = load_tile(path, self.key, shape) if path else None
+            values = load_tile(path, self.key, shape, self._tile_name(layer, a, b)) if path else None
             if values is not None:
                 self._store(layer, a, b, values)
             else:
@@ -242,11 +254,21 @@ class Surrogate:
                 expected = 1 if case is None else 2 * (nr - 1)
                 if entry[1] == expected:
                     self._store(layer, a, b, entry[0])
-                    path = self._tile_path(layer, a, b)
-                    if path:
-                        save_tile(path, self.key, entry[0])
+                    self._save(layer, a, b, entry[0])
             self.solves += n_solves
         self.build_seconds += time.perf_counter() - t0
+
+    def _save(self, layer: str, a: int, b: int, values: np.ndarray) -> None:
+        """Write a solved tile to the cache; if it cannot be written (read-only, full disk),
+        keep it in memory only, stop writing and say so once."""
+        path = self._tile_path(layer, a, b)
+        if path is None or not self.cache_writable:
+            return
+        try:
+            save_tile(path, self.key, values, self._tile_name(layer, a, b))
+        except OSError as err:
+            self.cache_writable = False
+            warn_unwritable(f"{path.parent} cannot be written ({err.strerror or err})")
 
     def _store(self, layer: str, a: int, b: int, values: np.ndarray) -> None:
         ia, jb = self._tile_nodes(a), self._tile_nodes(b)
@@ -466,18 +488,44 @@ class Surrogate:
         per point by the unit cell's bracketing iteration (:mod:`fabric_fenicsx.material.damage_solver`,
         compiled by :mod:`fabric_fenicsx.surrogate.kernels.damage`). Points whose stretch leaves their
         damage unchanged (mu_i below mu_i^crit, or unloading) take no iteration.
+
+        The update always returns, with 0 <= alpha_i <= alpha_i^hist: a point whose fast
+        iteration does not converge is finished by the iteration's guaranteed bracketing, and
+        one with no root even there (a jump of the interpolated target larger than ACCEPT) gets
+        the upper end of its final bracket (narrower than ``tol``). Both kinds are kept in
+        ``self.damage_fallbacks`` (:class:`~fabric_fenicsx.material.damage_solver.FallbackLog`:
+        counts and the first states); the first point without a root also gives a warning that
+        names its state. Raises SurrogateError only for a non-finite table value (a fault of a
+        table tile, not of the point).
         """
         E1, E2, a1h, a2h, shape = self._inputs(E1, E2, alpha1_hist, alpha2_hist,
                                                 ("alpha1_hist", "alpha2_hist"))
         P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol)
-        failed = np.flatnonzero(status != CONVERGED)
-        if failed.size:
+        if np.any(status == damage_kernel.NON_FINITE):
+            k = int(np.flatnonzero(status == damage_kernel.NON_FINITE)[0])
+            raise SurrogateError(
+                f"surrogate table: a non-finite stretch in the table tile of E1 = {E1[k]!r}, "
+                f"E2 = {E2[k]!r} (alpha_hist = ({a1h[k]!r}, {a2h[k]!r})) stopped the damage "
+                f"iteration; the tile is corrupt: delete the cache folder {self.cache_dir} to "
+                f"rebuild it")
+        fallback = np.flatnonzero((status == BRACKETED) | (status == UNCONVERGED))
+        if fallback.size:
+            log = self.__dict__.setdefault("damage_fallbacks", FallbackLog())
+            first_unconverged = log.unconverged == 0
             hist = np.stack((a1h, a2h), axis=1)
-            err = iteration_error(failed, hist, alpha, residual[failed])
-            k = failed[0]
-            raise SurrogateError(f"surrogate {err}; strains there E1 = {E1[k]!r}, E2 = {E2[k]!r}. "
-                                 f"Refine the table (resolution, r_nodes) or loosen the update's "
-                                 f"tol.") from err
+            log.record(status[fallback], E1[fallback], E2[fallback], hist[fallback],
+                       alpha[fallback], residual[fallback])
+            bad = fallback[status[fallback] == UNCONVERGED]
+            if bad.size and first_unconverged:
+                import warnings
+                k = int(bad[0])
+                warnings.warn(
+                    f"surrogate damage iteration: no root of Eq. 2-25 at E1 = {E1[k]!r}, "
+                    f"E2 = {E2[k]!r}, alpha_hist = ({a1h[k]!r}, {a2h[k]!r}) (the interpolated "
+                    f"target jumps there); used alpha = {tuple(map(float, alpha[k]))} with "
+                    f"alpha - target = {tuple(map(float, residual[k]))}. The run goes on; such "
+                    f"points are counted in Surrogate.damage_fallbacks", RuntimeWarning,
+                    stacklevel=2)
         if tension_only:
             np.maximum(P, 0.0, out=P)
         out = [P[:, 0].reshape(shape), P[:, 1].reshape(shape), alpha[:, 0].reshape(shape),
@@ -497,7 +545,8 @@ class Surrogate:
             E1, E2, a1, a2, self._table(), self._spec(("P1", "P2")), self._spec(("mu1", "mu2")),
             self._law, self.mu_crit, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status)
         if waiting:
-            again = np.flatnonzero(status >= damage_kernel.NEEDS_TILES)
+            again = np.flatnonzero((status == damage_kernel.NEEDS_TILES)
+                                   | (status == damage_kernel.NEEDS_DAMAGED_TILES))
             lookup = again[status[again] == damage_kernel.NEEDS_TILES]
             self._require_points(E1[lookup], E2[lookup], a1[lookup], a2[lookup])
             growing = again[status[again] == damage_kernel.NEEDS_DAMAGED_TILES]

@@ -7,8 +7,12 @@ lines, serpentine so that consecutive solves are neighbours, on a pool of proces
 block's first node is solved from the unit cell's reference state, so a tile is the same
 whichever blocks a worker solved before it.
 Tiles are cached on disk as ``.npz`` files under a key derived from the fabric, the
-solver settings and the grid; each file stores that key and a checksum of its data and
-is rebuilt when either does not match.
+solver settings and the grid; each file stores that key, the tile's name (layer and place in
+the table) and a checksum covering both and the data, and is rebuilt when any does not match
+(a tile's file copied over another's is rebuilt). A cache that cannot be written (a read-only
+folder, a path naming a file, a full disk) does not stop a run: new tiles are kept in memory
+and a :class:`CacheWarning` says so once (:func:`cache_problem`, :func:`warn_unwritable`,
+:func:`report_cache_problems`).
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ import json
 import multiprocessing
 import os
 import sys
+import tempfile
 import time
+import warnings
 import zlib
 from pathlib import Path
 
@@ -28,9 +34,15 @@ QUANTITIES = ("P1", "P2", "mu1", "mu2", "V", "Psi")
 """Tabulated per node: P_i (N/m, Eq. 2-31), maximum stretches mu_i, contact force V (N) and
 stored energy Psi (J/m^2) of the unit cell, at the node's (E1, E2, alpha)."""
 
-FORMAT_VERSION = 2
-"""2: each block starts from the unit cell's reference state (1 warm-started its first node
-from the block the worker had solved before: tiles depended on build order)."""
+FORMAT_VERSION = 3
+"""3: the checksum covers the tile's name (layer, a, b) and the cache key, so a tile's file
+copied over another's fails it (2 covered the values only). 2: each block starts from the unit
+cell's reference state (1 warm-started its first node from the block the worker had solved
+before: tiles depended on build order)."""
+
+
+class CacheWarning(UserWarning):
+    """The tile cache cannot be written: tiles are solved and kept in memory for this run."""
 
 
 def default_cache_dir() -> Path:
@@ -49,29 +61,82 @@ def cache_key(fabric_dict: dict, settings: dict) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
-def _checksum(values: np.ndarray) -> int:
-    return zlib.crc32(np.ascontiguousarray(values).tobytes())
+def _checksum(values: np.ndarray, key: str, tile: str) -> int:
+    """CRC-32 of the cache key, the tile's name and shape, and its values: a file holds one
+    tile of one table, and says which."""
+    head = f"{key}/{tile}/{values.shape}".encode()
+    return zlib.crc32(np.ascontiguousarray(values).tobytes(), zlib.crc32(head))
 
 
-def load_tile(path: Path, key: str, shape: tuple) -> np.ndarray | None:
-    """The tile's values, or None if the file is missing, corrupt or of another key."""
-    if not path.exists():
-        return None
+def load_tile(path: Path, key: str, shape: tuple, tile: str) -> np.ndarray | None:
+    """The values of tile ``tile`` (its name, e.g. ``intact_2_3``), or None if the file is
+    missing, unreadable, corrupt, of another key or another tile's."""
     try:
+        if not path.exists():
+            return None
         with np.load(path, allow_pickle=False) as f:
             values = f["values"]
-            ok = (str(f["key"]) == key and values.shape == shape
-                  and int(f["checksum"]) == _checksum(values) and np.all(np.isfinite(values)))
-    except Exception:  # truncated or garbled file: rebuild it
+            ok = (str(f["key"]) == key and str(f["tile"]) == tile and values.shape == shape
+                  and int(f["checksum"]) == _checksum(values, key, tile) and np.all(np.isfinite(values)))
+    except Exception:  # truncated, garbled, unreadable or of an older format: rebuild it
         ok = False
     return values if ok else None
 
 
-def save_tile(path: Path, key: str, values: np.ndarray) -> None:
+def save_tile(path: Path, key: str, values: np.ndarray, tile: str) -> None:
+    """Write tile ``tile`` atomically (a temporary file, then a rename); OSError if it cannot
+    be written (no partial file is left)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
-    np.savez(tmp, values=values, key=np.array(key), checksum=np.array(_checksum(values)))
-    os.replace(tmp, path)
+    try:
+        np.savez(tmp, values=values, key=np.array(key), tile=np.array(tile),
+                 checksum=np.array(_checksum(values, key, tile)))
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def cache_problem(folder: Path) -> str | None:
+    """Why tiles cannot be written into ``folder`` (created if missing), or None if they can;
+    the reason names the folder."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        return f"{folder} is a file, not a folder"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder, prefix=".write-test-"):
+            pass
+    except OSError as err:
+        return f"{folder} is not writable ({err.strerror or err})"
+    return None
+
+
+_WARNED: set[str] = set()
+_REPORT = None
+
+
+def report_cache_problems(report) -> None:
+    """Send cache problems to ``report(message)`` instead of :func:`warnings.warn` (the command
+    line prints them on rank 0 and drops them on the others); None restores the warning."""
+    global _REPORT
+    _REPORT = report
+
+
+def warn_unwritable(reason: str) -> None:
+    """Say, once per process and reason, that new tiles stay in memory (a :class:`CacheWarning`
+    or the reporter of :func:`report_cache_problems`; the command line's pre-flight check and
+    the surrogate give the same reason for the same folder, so it is said once)."""
+    if reason in _WARNED:
+        return
+    _WARNED.add(reason)
+    message = (f"surrogate cache: {reason}: table tiles not in it are solved and kept in memory "
+               "for this run only; set material.surrogate_cache or FABRIC_FENICSX_CACHE to a "
+               "writable folder to keep them")
+    if _REPORT is not None:
+        _REPORT(message)
+    else:
+        warnings.warn(message, CacheWarning, stacklevel=1)
 
 
 # ---------------------------------------------------------------------------- solving

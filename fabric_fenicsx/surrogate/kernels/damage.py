@@ -92,12 +92,15 @@ def _compiled(module, names, **bound):
 
 
 _solve_point = _compiled(damage_solver, ("_residual", "_settled", "_falsi_or_bisect", "_fast",
-                                         "_scan", "solve_point"), target=_target)["solve_point"]
+                                         "_scan", "_settled_residual", "_outer", "_nested",
+                                         "_bracket", "solve_point"), target=_target)["solve_point"]
 
 
-NEEDS_TILES, NEEDS_DAMAGED_TILES = 2, 3
-"""Status of :func:`update` beyond damage_solver's: a tile of the point's look-up at its history
-is not built; the damaged layer of its cell (every r, for the iteration) is not built."""
+NEEDS_TILES, NEEDS_DAMAGED_TILES, NON_FINITE = 3, 4, 5
+"""Status of :func:`update` beyond damage_solver's (CONVERGED, UNCONVERGED, BRACKETED): a tile
+of the point's look-up at its history is not built; the damaged layer of its cell (every r, for
+the iteration) is not built; the iteration met a non-finite table stretch (a table tile holds
+NaN: a fault of the table, not of the point)."""
 
 
 @njit(cache=True, nogil=True)
@@ -105,9 +108,11 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, floor, tol, P, 
            status):
     """The constitutive update of n points: the new alpha (n, 2) from alpha^hist = (a1, a2)
     (Eq. 2-25 / A.12) and P1, P2 there into P (n, 2); per point ``status``: CONVERGED (damage
-    unchanged, or its iteration converged), UNCONVERGED (alpha - target in ``residual``; also
-    a non-finite alpha, from a non-finite table stretch), NEEDS_TILES or NEEDS_DAMAGED_TILES
-    (the point is not done). Returns the numbers of points that iterated and that are not
+    unchanged, or its iteration converged), BRACKETED (converged on the iteration's guaranteed
+    path), UNCONVERGED (no root within ACCEPT: alpha is the upper end of a bracket narrower than
+    tol around a jump of the target; alpha - target in ``residual``), NON_FINITE (a non-finite
+    alpha, from a non-finite table stretch), NEEDS_TILES or NEEDS_DAMAGED_TILES (the point is
+    not done). Every done point has 0 <= alpha <= alpha^hist. Returns the numbers of points that iterated and that are not
     done. Only the points whose cell can reach mu_crit (flag 1 of interp_kernel.lookup) look
     up their stretches. table: :func:`interp_kernel.lookup`'s; spec_P, spec_mu: its specs of
     (P1, P2) and (mu1, mu2)."""
@@ -147,7 +152,7 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, floor, tol, P, 
             if alpha[n, k] < broken:
                 alpha[n, k] = 0.0
             if not math.isfinite(alpha[n, k]):
-                status[n] = damage_solver.UNCONVERGED
+                status[n] = NON_FINITE
         x1[0], x2[0] = alpha[n, 0], alpha[n, 1]
         interp_kernel.lookup(E1[n:n + 1], E2[n:n + 1], x1, x2, table, spec_P, P[n:n + 1], one)
     return iterated, waiting

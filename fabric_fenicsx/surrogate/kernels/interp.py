@@ -86,11 +86,15 @@ def _risk(x1, x2, i, j, table):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _dead(x1, x2, c, spec):
-    """The value of quantity c where a yarn is broken (alpha = 0), NaN where none is."""
-    if x2 == 0.0 and not math.isnan(spec[3][c]):
+def _dead(x1, x2, c, spec, broken):
+    """The value of quantity c where a yarn is broken, NaN where none is. A yarn is broken
+    below ``broken`` (ALPHA_BROKEN), as in the unit cell, which takes such a yarn out of the
+    cell (F_i = 0, mu_i = mu_i^complete): not only at alpha = 0 exactly, else an alpha of
+    1e-300 would read the r = 0 node (solved at R_LIMIT) and give the yarn the force of
+    alpha_i = R_LIMIT (e.g. P1 = 24.6 N/m instead of 0)."""
+    if x2 < broken and not math.isnan(spec[3][c]):
         return spec[3][c]
-    if x1 == 0.0:
+    if x1 < broken:
         return spec[2][c]
     return math.nan
 
@@ -108,9 +112,18 @@ def lookup(E1, E2, a1, a2, table, spec, out, flag):
     linear in between), quantities per cell, the integrity below which a yarn is broken.
     spec: (quantities, scaled, dead1, dead2): their rows (``QUANTITIES`` index), whether each
     is a force (multiplied by alpha_max: the damage scaling of :class:`Surrogate`), and the
-    value where alpha1 (alpha2) is 0, NaN for none.
+    value where alpha1 (alpha2) is below alpha_broken (the yarn broken, :func:`_dead`), NaN for
+    none.
+
+    Accuracy in r near 0 (a stated bound, not removed): between the r = 0 node (solved at
+    R_LIMIT) and r_1 = 1/(r_nodes - 1)^2 the forces are interpolated linearly in sqrt(r), but
+    near r -> 0 both yarns' forces are close to linear in r (the weak yarn's P ~ c r, the
+    other's through crimp interchange); that errs by up to a quarter of the force's change over
+    the first interval: alpha1 = 1e-3 gives 668 N/m where the unit cell gives 216 N/m at
+    E = (0.02, 0.02). Against the intact stresses it is about 1 %; the measured bound is in
+    docs/reliability.md (near zero damage).
     """
-    coefs, nq, P = table[:2], table[11], table[13]
+    coefs, nq, broken, P = table[:2], table[11], table[12], table[13]
     quantities, scaled = spec[0], spec[1]
     PP = P * P
     for n in range(E1.size):
@@ -128,7 +141,7 @@ def lookup(E1, E2, a1, a2, table, spec, out, flag):
                 v += w * (_value(coef, k0 + nq * PP, P, a, b) - v)
             if scaled[c]:
                 v = v * amax if amax > 0.0 else 0.0
-            dead = _dead(x1, x2, c, spec)
+            dead = _dead(x1, x2, c, spec, broken)
             out[n, c] = v if math.isnan(dead) else dead
         flag[n] = _risk(x1, x2, i, j, table)
 
@@ -137,7 +150,7 @@ def lookup(E1, E2, a1, a2, table, spec, out, flag):
 def lookup_derivatives(E1, E2, a1, a2, table, spec, out, d1, d2, flag):
     """:func:`lookup` with the derivatives d/dE1, d/dE2 into ``d1``, ``d2`` (a broken yarn's
     quantities: 0). Apart from it: the extra arithmetic slows the value loop 2x."""
-    coefs, h, nq, P = table[:2], table[7], table[11], table[13]
+    coefs, h, nq, broken, P = table[:2], table[7], table[11], table[12], table[13]
     quantities, scaled = spec[0], spec[1]
     PP = P * P
     for n in range(E1.size):
@@ -157,7 +170,7 @@ def lookup_derivatives(E1, E2, a1, a2, table, spec, out, d1, d2, flag):
             factor = 1.0
             if scaled[c]:
                 factor = amax if amax > 0.0 else 0.0
-            dead = _dead(x1, x2, c, spec)
+            dead = _dead(x1, x2, c, spec, broken)
             if math.isnan(dead):
                 out[n, c], d1[n, c], d2[n, c] = v * factor, g1 * factor / h, g2 * factor / h
             else:

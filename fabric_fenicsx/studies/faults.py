@@ -1,0 +1,711 @@
+"""Reliability study, part 1: bad input and faults, each run through the command line in a
+fresh process (issue 14).
+
+* :func:`bad_input_rows`: every bad input of the issue (a bad scene key or value, bad fabric
+  files, a missing ``fabric.file``, an unusable ``--out``, a scene path that is a folder or not
+  UTF-8, an unwritable surrogate cache, ``static --step 1e-9``, a corrupted or a swapped table
+  tile), one row each: the input, the exit code, the first line of the message, the seconds until
+  the process stopped, and whether mesh or surrogate work had started.
+* :func:`fault_rows`: faults while a run goes (SIGINT, SIGKILL, a read-only or full surrogate
+  cache, a full output disk, one failing MPI rank), one row each: what happened and what of the
+  output is kept.
+
+Both are rendered into docs/reliability.md by :mod:`fabric_fenicsx.studies.reliability`; each
+row's keys are its table's columns. Every case runs the tiny scene :data:`TINY_SCENE` (a
+16 x 16 uniform mesh, 0.3 ms of simulated time, about a second of solving), in its own
+temporary folder with its own surrogate cache, so the study neither reads nor changes the
+user's cache.
+
+How "work started" is seen: the command runs under :data:`PROBE`, a few lines that install an
+audit hook (:func:`sys.addaudithook`) before ``fabric_fenicsx.cli.main`` and print, at exit, whether
+DOLFINx was imported (the impact command imports it only to build the mesh, after every input
+check) and whether a table tile file was opened (read from or written to the cache). A process
+ended by a signal or ``MPI_Abort`` prints nothing; its row says so.
+
+Read-only folders: root ignores permission bits, so as root a read-only folder is a tmpfs
+mount remounted read-only (``mount -o remount,ro``); as another user it is ``chmod 555``. A full
+disk is a tmpfs of 20 or 200 kB. Where mounting is refused the row says "not available"; nothing
+is faked.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import dataclasses
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+PROBE_TAG = "fabric-fenicsx-probe:"
+
+PROBE = r"""
+import json, os, sys
+seen = {"dolfinx": False, "tiles": False}
+def hook(event, args):
+    if event == "import" and args and args[0] == "dolfinx":
+        seen["dolfinx"] = True
+    elif event == "open" and args:
+        try:
+            path = os.fspath(args[0])
+        except TypeError:
+            return
+        if isinstance(path, str) and path.endswith(".npz") and "surrogate-" in path:
+            seen["tiles"] = True
+sys.addaudithook(hook)
+import atexit
+atexit.register(lambda: sys.stderr.write("%s " + json.dumps(seen) + "\n"))
+pid_dir = os.environ.get("FAULTS_PID_DIR")
+if pid_dir:
+    rank = os.environ.get("OMPI_COMM_WORLD_RANK", "0")
+    with open(os.path.join(pid_dir, "rank%%s.pid" %% rank), "w") as f:
+        f.write(str(os.getpid()))
+%s
+from fabric_fenicsx.cli import main
+sys.argv[0] = "fabric-fenicsx"
+sys.exit(main(sys.argv[1:]))
+"""
+"""The instrumented command line (``%s``: the tag, then Python run before ``main``: a fault
+injected by the harness, empty otherwise)."""
+
+TINY_SCENE = """\
+description = "tiny scene of the reliability study"
+[material]
+angle = 90.0
+damage = false
+[mesh]
+kind = "uniform"
+side = 0.08
+n = 16
+[projectile]
+diameter = 0.02
+velocity = 20.0
+mass = 0.005
+[boundary]
+clamped = ["bottom", "top"]
+[run]
+t_end = 3e-4
+[output]
+xdmf_interval = 0.0
+png = false
+progress_interval = 0.0
+"""
+"""The tiny scene (as ``TINY`` of tests/impact/test_impact.py): four intact table tiles, about
+700 steps."""
+
+GOOD_FABRIC = """\
+name = "zylon-like"
+area = 3.61e-8
+density = 1560.0
+[warp]
+L = 0.3741e-3
+Phi_L = 0.3481
+A0 = 4338.0
+B0 = 0.2657e-6
+mu_crit = 1.025
+[fill]
+L = 0.3650e-3
+Phi_L = 0.1546
+A0 = 4724.0
+B0 = 0.2935e-6
+mu_crit = 1.0297
+[damage]
+law = "exponential"
+beta = 124.0
+width = 0.03
+"""
+"""A valid fabric file (Zylon AS of Table 1); the bad ones below change one thing in it."""
+
+BAD_FABRICS = {
+    "negative A0": GOOD_FABRIC.replace("A0 = 4338.0", "A0 = -4338.0"),
+    "missing key (area)": GOOD_FABRIC.replace("area = 3.61e-8\n", ""),
+    "unknown damage law": GOOD_FABRIC.replace('law = "exponential"', 'law = "weibull"'),
+}
+
+MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "OMPI_MCA_rmaps_base_oversubscribe": "1", "OMPI_MCA_mpi_yield_when_idle": "1"}
+"""OpenMPI as root, more ranks than cores, and waiting ranks yielding the core (the study runs
+on a shared machine)."""
+
+
+# ----------------------------------------------------------------------------- running the CLI
+@dataclasses.dataclass
+class Run:
+    """One command-line run: exit code (None: killed on the time-out), output, wall seconds and
+    what the probe saw (None: the process printed no probe line, e.g. it was killed)."""
+
+    returncode: int | None
+    stdout: str
+    stderr: str
+    seconds: float
+    dolfinx: bool | None
+    tiles: bool | None
+
+    @property
+    def messages(self) -> list[str]:
+        """stderr lines without the probe's."""
+        return [ln for ln in self.stderr.splitlines() if not ln.startswith(PROBE_TAG)]
+
+    @property
+    def first_line(self) -> str:
+        """The first line of the message: stderr's first non-empty line, else stdout's last."""
+        for line in self.messages:
+            if line.strip():
+                return line.strip()
+        lines = [ln for ln in self.stdout.splitlines() if ln.strip()]
+        return lines[-1].strip() if lines else ""
+
+    @property
+    def work_started(self) -> str:
+        """'none', 'mesh' (DOLFINx loaded), 'mesh + tile files' (and table tile files read or
+        written), or 'unknown' (no probe line: the process was killed)."""
+        if self.dolfinx is None:
+            return "unknown"
+        parts = [name for name, on in (("mesh", self.dolfinx), ("tile files", self.tiles)) if on]
+        return " + ".join(parts) or "none"
+
+
+def cli_env(cache: Path | None = None, **extra: str) -> dict[str, str]:
+    """The environment of a study run: this checkout first on the path, MPI allowed as root,
+    the surrogate cache in ``cache``."""
+    env = dict(os.environ, **MPI_ENV)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    if cache is not None:
+        env["FABRIC_FENICSX_CACHE"] = str(cache)
+    env.update(extra)
+    return env
+
+
+def cli_command(args: list[str], ranks: int = 1, inject: str = "") -> list[str]:
+    """``fabric-fenicsx ARGS`` under the probe (and ``mpirun -n RANKS`` when ranks > 1)."""
+    cmd = [sys.executable, "-c", PROBE % (PROBE_TAG, inject), *map(str, args)]
+    return (["mpirun", "-n", str(ranks)] + cmd) if ranks > 1 else cmd
+
+
+def run_cli(args: list[str], env: dict | None = None, cwd: Path | None = None, timeout: float = 180.0,
+            ranks: int = 1, inject: str = "", on_start=None) -> Run:
+    """Run the command line once; a run still going after ``timeout`` s is ended (SIGTERM, then
+    SIGKILL, to its whole process group) and has ``returncode`` None. ``on_start(proc)`` is
+    called right after the start (to send signals)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cli_command(args, ranks, inject), env=env or cli_env(), cwd=cwd or ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    if on_start is not None:
+        on_start(proc)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+        code = proc.returncode
+    except subprocess.TimeoutExpired:
+        out, err = _end_group(proc)
+        code = None
+    seconds = time.perf_counter() - t0
+    probe = _probe(err)
+    return Run(code, out, err, seconds, probe.get("dolfinx"), probe.get("tiles"))
+
+
+def _end_group(proc: subprocess.Popen) -> tuple[str, str]:
+    """End a process and its children (its own session): SIGTERM, then SIGKILL after 5 s."""
+    for sig, wait in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 10.0)):
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, sig)
+        try:
+            return proc.communicate(timeout=wait)
+        except subprocess.TimeoutExpired:
+            continue
+    return "", ""
+
+
+def _probe(stderr: str) -> dict:
+    """What the probe saw, merged over the ranks (any rank counts)."""
+    seen: dict = {}
+    for line in stderr.splitlines():
+        if line.startswith(PROBE_TAG):
+            for key, value in json.loads(line[len(PROBE_TAG):]).items():
+                seen[key] = seen.get(key, False) or value
+    return seen
+
+
+# ----------------------------------------------------------------------------- folders
+def is_root() -> bool:
+    return hasattr(os, "geteuid") and os.geteuid() == 0
+
+
+@contextlib.contextmanager
+def read_only_dir(path: Path, fill: Path | None = None, size: str = "2m"):
+    """``path`` made a read-only folder (holding a copy of ``fill``'s contents, if given).
+    Yields how ("read-only tmpfs mount" / "chmod 555") or None when it cannot be made."""
+    path.mkdir(parents=True, exist_ok=True)
+    if is_root():
+        if _mount(["-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)]) is not None:
+            yield None
+            return
+        try:
+            if fill is not None:
+                shutil.copytree(fill, path, dirs_exist_ok=True)
+            if _mount(["-o", "remount,ro", str(path)]) is not None:
+                yield None
+                return
+            yield "read-only tmpfs mount"
+        finally:
+            subprocess.run(["umount", str(path)], capture_output=True)
+        return
+    if fill is not None:
+        shutil.copytree(fill, path, dirs_exist_ok=True)
+    modes = [(p, p.stat().st_mode) for p in [path, *path.rglob("*")]]
+    for p, _ in modes:
+        p.chmod(0o555 if p.is_dir() else 0o444)
+    try:
+        yield "chmod 555"
+    finally:
+        for p, mode in modes:
+            p.chmod(mode)
+
+
+@contextlib.contextmanager
+def small_disk(path: Path, size: str):
+    """``path`` a tmpfs of ``size`` (a nearly full disk); yields False when mounting is refused."""
+    path.mkdir(parents=True, exist_ok=True)
+    if not is_root() or _mount(["-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)]) is not None:
+        yield False
+        return
+    try:
+        yield True
+    finally:
+        subprocess.run(["umount", str(path)], capture_output=True)
+
+
+def _mount(args: list[str]) -> str | None:
+    """Run ``mount ARGS``; None on success, else the reason it was refused."""
+    try:
+        proc = subprocess.run(["mount", *args], capture_output=True, text=True)
+    except OSError as err:
+        return str(err)
+    return None if proc.returncode == 0 else (proc.stderr.strip() or f"exit {proc.returncode}")
+
+
+# ----------------------------------------------------------------------------- a workspace
+class Workspace:
+    """A temporary folder with the tiny scene, fabric files and a filled surrogate cache."""
+
+    def __init__(self, base: Path):
+        self.base = base
+        self.scene = base / "tiny.toml"
+        self.scene.write_text(TINY_SCENE)
+        self.cache = base / "cache"
+        self._filled = False
+
+    def path(self, name: str) -> Path:
+        return self.base / name
+
+    def scene_with(self, name: str, extra: str) -> Path:
+        """The tiny scene with ``extra`` TOML tables after it (e.g. a [fabric] table)."""
+        p = self.base / name
+        p.write_text(TINY_SCENE + "\n" + extra)
+        return p
+
+    def filled_cache(self) -> Path:
+        """The cache after one tiny run (its four intact tiles)."""
+        if not self._filled:
+            run = run_cli(["impact", self.scene, "--out", self.path("fill-out"), "--quiet"],
+                          env=cli_env(self.cache))
+            if run.returncode != 0:
+                raise RuntimeError(f"filling the study's cache failed: {run.first_line}")
+            self._filled = True
+        return self.cache
+
+    def tiles(self, cache: Path | None = None) -> list[Path]:
+        return sorted((cache or self.cache).glob("surrogate-*/*.npz"))
+
+    def cache_copy(self, name: str) -> Path:
+        """A copy of the filled cache."""
+        dst = self.base / name
+        shutil.copytree(self.filled_cache(), dst)
+        return dst
+
+
+@dataclasses.dataclass
+class Case:
+    """One bad input ready to run: arguments, environment, MPI ranks, and a note on how the
+    input was made; ``args`` None when it could not be made (the note says why)."""
+
+    args: list | None
+    env: dict | None = None
+    ranks: int = 1
+    note: str = ""
+    out: Path | None = None
+
+
+def _row(what: str, case: Case, run: Run | None) -> dict:
+    """One table row of a bad input."""
+    if run is None:
+        return {"input": what, "exit code": "-", "message (first line)": "not available: " + case.note,
+                "seconds": "-", "work started": "-", "outcome": "-"}
+    code = "timed out" if run.returncode is None else run.returncode
+    how = f" ({case.note})" if case.note else ""
+    return {"input": what + how, "exit code": code, "message (first line)": _short(run.first_line),
+            "seconds": round(run.seconds, 2), "work started": run.work_started,
+            "outcome": _outcome(run, case.out)}
+
+
+def _outcome(run: Run, out: Path | None) -> str:
+    """How the run ended, in words; for a finished impact, the unit-cell solves it made."""
+    if run.returncode is None:
+        return f"still going after {run.seconds:.0f} s: ended by the harness"
+    if run.returncode == 0:
+        summary = out / "summary.json" if out is not None else None
+        if summary is not None and summary.exists():
+            solves = json.loads(summary.read_text()).get("surrogate", {}).get("solves_this_run")
+            return f"ran to the end (summary.json); {solves} unit-cell solves for table tiles"
+        return "ran to the end"
+    if run.work_started == "none":
+        return "stopped before any work"
+    return f"failed after work started (exit {run.returncode})"
+
+
+def _short(text: str, limit: int = 220) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+# ----------------------------------------------------------------------------- bad input
+def bad_input_rows(timeout: float = 180.0) -> list[dict]:
+    """Each bad input of issue 14 through the command line: input, exit code, first line of the
+    message, seconds until the process stopped, work started (see the module's docstring)."""
+    with tempfile.TemporaryDirectory(prefix="fabric-faults-") as tmp:
+        ws = Workspace(Path(tmp))
+        rows = []
+        for what, make in _bad_inputs(ws):
+            with make() as case:
+                run = None if case.args is None else run_cli(case.args, env=case.env, timeout=timeout,
+                                                             ranks=case.ranks)
+                rows.append(_row(what, case, run))
+        return rows
+
+
+def _fixed(args, env, ranks: int = 1, out: Path | None = None):
+    """A case whose input needs no setting up."""
+    @contextlib.contextmanager
+    def make():
+        yield Case(args, env, ranks, out=out)
+    return make
+
+
+def _bad_inputs(ws: Workspace):
+    """(description, context manager yielding a :class:`Case`) of every bad input."""
+    env = cli_env(ws.cache)
+    out = ws.path("out")
+    run = ["impact", ws.scene, "--out", out]
+    cases = [
+        ("scene: unknown key (--set projectile.speed=50)", _fixed(run + ["--set", "projectile.speed=50"], env)),
+        ("scene: bad value (--set projectile.velocity=-3)",
+         _fixed(run + ["--set", "projectile.velocity=-3"], env)),
+    ]
+    for k, (label, text) in enumerate(BAD_FABRICS.items()):
+        (ws.base / f"bad-fabric-{k}.fabric.toml").write_text(text)
+        scene = ws.scene_with(f"bad-fabric-{k}.toml", f'[fabric]\nfile = "bad-fabric-{k}.fabric.toml"\n')
+        cases.append((f"fabric file: {label}, --check", _fixed(["impact", scene, "--check"], env)))
+        cases.append((f"fabric file: {label}, run", _fixed(["impact", scene, "--out", out], env)))
+    missing = ws.scene_with("missing-fabric.toml", '[fabric]\nfile = "no-such-fabric.toml"\n')
+    existing = ws.path("existing-file")
+    existing.write_text("a file, not a folder\n")
+    latin1 = ws.path("latin1.toml")
+    latin1.write_bytes(TINY_SCENE.replace("tiny scene", "sc\xe8ne").encode("latin-1"))
+    cache_file = ws.path("cache-file")
+    cache_file.write_text("a file, not a folder\n")
+    cases += [
+        ("fabric.file missing, with a scene file", _fixed(["impact", missing, "--out", out], env)),
+        ("fabric.file missing, no scene file (--set fabric.file=no-such-fabric.toml)",
+         _fixed(["impact", "--out", out, "--set", "fabric.file=no-such-fabric.toml"], env)),
+        ("--out is an existing file", _fixed(["impact", ws.scene, "--out", existing], env)),
+        ("--out is an existing file, 2 MPI ranks", _fixed(["impact", ws.scene, "--out", existing], env, 2)),
+        ("--out is a read-only folder", _read_only_out(ws)),
+        ("scene path is a folder", _fixed(["impact", ws.base, "--out", out], env)),
+        ("scene path is not UTF-8 (Latin-1)", _fixed(["impact", latin1, "--out", out], env)),
+        ("surrogate cache: FABRIC_FENICSX_CACHE names a file",
+         _fixed(["impact", ws.scene, "--out", ws.path("out-cache-file"), "--quiet"], cli_env(cache_file),
+                out=ws.path("out-cache-file"))),
+        ("surrogate cache: an empty read-only folder", _read_only_cache(ws)),
+        ("static --step 1e-9", _fixed(["static", "--scenario", "uniaxial-strain", "--step", "1e-9",
+                                       "--out", ws.path("static")], env)),
+        ("table tile: a corrupted (truncated) file", _tile_fault(ws, "corrupt")),
+        ("table tile: one tile's file copied over another's", _tile_fault(ws, "swap")),
+    ]
+    return cases
+
+
+def _read_only_out(ws: Workspace):
+    @contextlib.contextmanager
+    def make():
+        folder = ws.path("ro-out")
+        with read_only_dir(folder) as how:
+            yield Case(None if how is None else ["impact", ws.scene, "--out", folder], cli_env(ws.cache),
+                       note=how or "mount refused")
+    return make
+
+
+def _read_only_cache(ws: Workspace):
+    @contextlib.contextmanager
+    def make():
+        folder = ws.path("ro-cache")
+        with read_only_dir(folder) as how:
+            out = ws.path("out-ro-cache")
+            yield Case(None if how is None else ["impact", ws.scene, "--out", out, "--quiet"],
+                       cli_env(folder), note=how or "mount refused", out=out)
+    return make
+
+
+def _tile_fault(ws: Workspace, kind: str):
+    @contextlib.contextmanager
+    def make():
+        cache = ws.cache_copy(f"cache-{kind}")
+        tiles = ws.tiles(cache)
+        if kind == "corrupt":
+            data = tiles[0].read_bytes()
+            tiles[0].write_bytes(data[: len(data) // 2])
+        else:
+            shutil.copyfile(tiles[0], tiles[-1])
+        out = ws.path(f"out-{kind}")
+        yield Case(["impact", ws.scene, "--out", out, "--quiet"], cli_env(cache), out=out)
+    return make
+
+
+# ----------------------------------------------------------------------------- faults
+def fault_rows(timeout: float = 240.0) -> list[dict]:
+    """Faults while a run goes: one row each with what happened and what output is kept."""
+    with tempfile.TemporaryDirectory(prefix="fabric-faults-") as tmp:
+        ws = Workspace(Path(tmp))
+        rows = [
+            _signal_row(ws, signal.SIGINT, timeout),
+            _signal_row(ws, signal.SIGKILL, timeout),
+            _read_only_cache_row(ws, timeout),
+            _full_cache_row(ws, timeout),
+            _full_out_row(ws, timeout, xdmf=False),
+            _full_out_row(ws, timeout, xdmf=True),
+            _mpi_read_only_out_row(ws, timeout),
+            _mpi_exception_row(ws, timeout),
+            _mpi_kill_row(ws, timeout),
+        ]
+        return rows
+
+
+def kept(out: Path) -> dict:
+    """What an output folder holds: readable history.csv rows, whether its last line is
+    complete, and whether summary.json is there and parses."""
+    hist = out / "history.csv"
+    rows, complete = 0, None
+    if hist.exists():
+        text = hist.read_text()
+        complete = text.endswith("\n") or not text
+        with open(hist, newline="") as f:
+            table = list(csv.reader(f))
+        header = table[0] if table else []
+        rows = sum(1 for r in table[1:] if len(r) == len(header) and _floats(r))
+    summary = out / "summary.json"
+    ok = False
+    if summary.exists():
+        with contextlib.suppress(ValueError):
+            json.loads(summary.read_text())
+            ok = True
+    return {"history rows readable": rows, "history ends on a whole line": complete,
+            "summary.json": "present" if ok else ("unreadable" if summary.exists() else "absent")}
+
+
+def _floats(row: list[str]) -> bool:
+    try:
+        [float(x) for x in row]
+    except ValueError:
+        return False
+    return True
+
+
+def _fault(fault: str, run: Run | None, out: Path | None, note: str = "") -> dict:
+    """One table row of a fault (``out`` None: no output folder to look at, "-")."""
+    nothing = {"history rows readable": "-", "history ends on a whole line": "-", "summary.json": "-"}
+    if run is None:
+        return {"fault": fault, "exit code": "-", "seconds": "-",
+                "message (first line)": "not available: " + note, **nothing}
+    code = "timed out" if run.returncode is None else run.returncode
+    row = {"fault": fault, "exit code": code, "seconds": round(run.seconds, 2),
+           "message (first line)": _short(_fault_message(run, note))}
+    row.update(kept(out) if out is not None else nothing)
+    return row
+
+
+def _fault_message(run: Run, note: str) -> str:
+    """The line that tells what happened: the command's own (``fabric-fenicsx ...``,
+    ``interrupted ...``), else mpirun's, else the first error line, else the first line."""
+    lines = [ln.strip() for ln in run.messages if ln.strip()]
+    picks = ([ln for ln in lines if ln.startswith(("fabric-fenicsx", "interrupted"))]
+             + [ln for ln in lines if ln.startswith("mpirun noticed")]
+             + [ln for ln in lines if "Error" in ln] + lines)
+    text = picks[0] if picks else "(no message)"
+    return f"{note}: {text}" if note else text
+
+
+def _with_t_end(ws: Workspace, t_end: float) -> Path:
+    p = ws.path(f"tiny-{t_end:g}.toml")
+    p.write_text(TINY_SCENE.replace("t_end = 3e-4", f"t_end = {t_end!r}"))
+    return p
+
+
+def _wait_for_rows(path: Path, rows: int, proc: subprocess.Popen, limit: float = 120.0) -> bool:
+    """Wait until ``path`` has ``rows`` lines (or the process ended); True if it has."""
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < limit and proc.poll() is None:
+        if path.exists() and path.read_text().count("\n") > rows:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _signal_row(ws: Workspace, sig: signal.Signals, timeout: float) -> dict:
+    out = ws.path(f"out-{sig.name}")
+    scene = _with_t_end(ws, 3e-3)
+    ws.filled_cache()
+
+    def send(proc):
+        if _wait_for_rows(out / "history.csv", 100, proc):
+            os.kill(proc.pid, sig)
+
+    run = run_cli(["impact", scene, "--out", out, "--quiet"], env=cli_env(ws.cache), timeout=timeout,
+                  on_start=send)
+    return _fault(f"{sig.name} after 100 history rows (serial)", run, out)
+
+
+def _read_only_cache_row(ws: Workspace, timeout: float) -> dict:
+    """A filled cache, one tile removed, made read-only: the run needs that one new tile."""
+    src = ws.cache_copy("cache-ro-src")
+    tiles = ws.tiles(src)
+    tiles[-1].unlink()
+    ro = ws.path("cache-ro")
+    out = ws.path("out-ro-cache")
+    with read_only_dir(ro, fill=src) as how:
+        if how is None:
+            return _fault("read-only cache, one tile missing", None, None, "no read-only folder")
+        run = run_cli(["impact", ws.scene, "--out", out, "--quiet"], env=cli_env(ro), timeout=timeout)
+    return _fault("filled read-only cache, one tile missing", run, out, how)
+
+
+def _full_cache_row(ws: Workspace, timeout: float) -> dict:
+    """The cache on a 20 kB tmpfs: one tile (13 kB) fits, the next fails with ENOSPC."""
+    disk = ws.path("cache-full")
+    out = ws.path("out-cache-full")
+    with small_disk(disk, "20k") as ok:
+        if not ok:
+            return _fault("surrogate cache on a full disk", None, None, "mount refused")
+        run = run_cli(["impact", ws.scene, "--out", out, "--quiet"], env=cli_env(disk), timeout=timeout)
+    return _fault("surrogate cache on a full disk (20 kB tmpfs)", run, out)
+
+
+def _full_out_row(ws: Workspace, timeout: float, xdmf: bool) -> dict:
+    """The output folder on a 200 kB tmpfs that the run overfills: history.csv alone (3 ms of
+    history every 1 us, about 0.8 MB) or the XDMF series (a frame every 10 us)."""
+    disk = ws.path(f"out-full-{'xdmf' if xdmf else 'csv'}")
+    ws.filled_cache()
+    if xdmf:
+        args = ["--set", "output.xdmf_interval=1e-5"]
+        scene = ws.scene
+        what = "output folder on a full disk (200 kB tmpfs): XDMF frames"
+    else:
+        args = []
+        scene = _with_t_end(ws, 3e-3)
+        what = "output folder on a full disk (200 kB tmpfs): history.csv"
+    with small_disk(disk, "200k") as ok:
+        if not ok:
+            return _fault(what, None, None, "mount refused")
+        run = run_cli(["impact", scene, "--out", disk, "--quiet", *args], env=cli_env(ws.cache),
+                      timeout=timeout)
+        row = _fault(what, run, disk)
+    return row
+
+
+def _mpi_read_only_out_row(ws: Workspace, timeout: float) -> dict:
+    out = ws.path("ro-out-mpi")
+    with read_only_dir(out) as how:
+        if how is None:
+            return _fault("2 MPI ranks, read-only --out", None, None, "no read-only folder")
+        run = run_cli(["impact", ws.scene, "--out", out, "--quiet"], env=cli_env(ws.cache),
+                      timeout=timeout, ranks=2)
+    return _fault("2 MPI ranks, --out a read-only folder", run, None, how)
+
+
+INJECT_RANK1 = """
+if os.environ.get("OMPI_COMM_WORLD_RANK") == "1":
+    import importlib.util
+
+    def _fail_later(module):
+        step = module.CentralDifference.step
+
+        def failing_step(self, dt, f_ext):
+            if self.time > 5e-5:
+                raise FloatingPointError("non-finite value injected by the reliability study on rank 1")
+            return step(self, dt, f_ext)
+        module.CentralDifference.step = failing_step
+
+    class _PatchOnImport:
+        # patches the simulation module when the command imports it (importing DOLFINx here,
+        # on one rank only, would start PETSc's collective set-up out of step with rank 0)
+        def find_spec(self, name, path=None, target=None):
+            if name != "fabric_fenicsx.impact.simulation":
+                return None
+            sys.meta_path.remove(self)
+            spec = importlib.util.find_spec(name)
+            run_module = spec.loader.exec_module
+
+            def exec_module(module):
+                run_module(module)
+                _fail_later(module)
+            spec.loader.exec_module = exec_module
+            return spec
+
+    sys.meta_path.insert(0, _PatchOnImport())
+"""
+"""A fault on rank 1 only, injected by the harness (the product has no such switch): once the
+command has imported the simulation, rank 1's membrane step raises FloatingPointError when the
+run passes 50 us, as a blow-up in the part of the mesh one rank owns would; the other rank
+meanwhile waits in the step's reductions."""
+
+
+def _mpi_exception_row(ws: Workspace, timeout: float) -> dict:
+    out = ws.path("out-mpi-exception")
+    ws.filled_cache()
+    run = run_cli(["impact", ws.scene, "--out", out, "--quiet"], env=cli_env(ws.cache), timeout=timeout,
+                  ranks=2, inject=INJECT_RANK1)
+    return _fault("2 MPI ranks, exception on rank 1 mid-run (injected by the harness)", run, out)
+
+
+def _mpi_kill_row(ws: Workspace, timeout: float) -> dict:
+    out = ws.path("out-mpi-kill")
+    pids = ws.path("pids")
+    pids.mkdir(exist_ok=True)
+    scene = _with_t_end(ws, 3e-3)
+    ws.filled_cache()
+
+    def kill_rank1(proc):
+        if _wait_for_rows(out / "history.csv", 100, proc):
+            with contextlib.suppress(OSError, ValueError):
+                os.kill(int((pids / "rank1.pid").read_text()), signal.SIGKILL)
+
+    run = run_cli(["impact", scene, "--out", out, "--quiet"],
+                  env=cli_env(ws.cache, FAULTS_PID_DIR=str(pids)), timeout=timeout, ranks=2,
+                  on_start=kill_rank1)
+    return _fault("2 MPI ranks, rank 1 killed (SIGKILL) after 100 history rows", run, out)
+
+
+def main() -> None:
+    """Print both tables as JSON lines (the rendering is in ``studies.reliability``)."""
+    for row in bad_input_rows():
+        print(json.dumps(row))
+    for row in fault_rows():
+        print(json.dumps(row))
+
+
+if __name__ == "__main__":
+    main()
