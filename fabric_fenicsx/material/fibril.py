@@ -56,8 +56,16 @@ def _critical_stretch(name: str, value) -> float:
     return v
 
 
+def _real_array(name: str, value) -> np.ndarray:
+    """``value`` as a float array, or a ValueError naming ``name`` (not numpy's own message)."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number or an array of them, got {value!r}") from None
+
+
 def _stretch_array(name: str, value) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
+    a = _real_array(name, value)
     if not np.all(np.isfinite(a)):
         bad = a[~np.isfinite(a)]
         raise ValueError(f"{name} contains non-finite values (e.g. {bad.flat[0]!r}); "
@@ -149,7 +157,10 @@ class FibrilBundle:
     """
 
     def __init__(self, d0_over_h0: float, n: int = 20000, seed: int = 0):
-        d = float(d0_over_h0) if not isinstance(d0_over_h0, bool) else float("nan")
+        try:
+            d = float(d0_over_h0) if not isinstance(d0_over_h0, bool) else float("nan")
+        except (TypeError, ValueError):
+            raise ValueError(f"d0_over_h0 must be a real number, got {d0_over_h0!r}") from None
         if not math.isfinite(d) or d < 0.0:
             raise ValueError(f"d0_over_h0 must be finite and >= 0, got {d0_over_h0!r}")
         self.d0_over_h0 = d
@@ -310,7 +321,7 @@ def damage_update(alpha_hist, mu_max, law, mu_crit: float) -> np.ndarray:
     ``mu_max`` is the larger of the current and the history-maximum yarn stretch; ``alpha_hist``
     the damage stored so far. Arrays broadcast; alpha never increases.
     """
-    a_hist = np.asarray(alpha_hist, dtype=float)
+    a_hist = _real_array("damage_update: alpha_hist", alpha_hist)
     if np.any(np.isnan(a_hist)):
         raise ValueError("damage_update: alpha_hist contains NaN")
     if np.any((a_hist < 0.0) | (a_hist > 1.0)):
@@ -336,8 +347,8 @@ def fit_beta(mu, alpha, mu_crit: float, width: float = 0.03) -> tuple[float, flo
     law is fixed at 1 or 0). The fit runs in log(beta) (so beta > 0) from the best point of a
     coarse log grid, with the analytic Jacobian. Returns (beta, rms residual of alpha).
     """
-    mu = np.asarray(mu, dtype=float)
-    alpha = np.asarray(alpha, dtype=float)
+    mu = _real_array("fit_beta: mu", mu)
+    alpha = _real_array("fit_beta: alpha", alpha)
     if mu.ndim != 1 or mu.shape != alpha.shape:
         raise ValueError(f"mu and alpha must be 1-D of equal length, got shapes "
                          f"{mu.shape} and {alpha.shape}")

@@ -9,6 +9,7 @@ import pathlib
 import shutil
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -176,6 +177,76 @@ def test_energy_balance_with_load_and_moving_support():
     assert records[-1].external > 0 and records[-1].support > 0
     assert max(abs(r.total - records[0].total) for r in records) < 0.01 * fed_in
     assert np.allclose(cd.v[pulled], 0.05)
+
+
+class LinearTable:
+    """Stand-in for the surrogate in `YarnStress`: straight linear yarns, P_i = K (lambda_i - 1)
+    (signed, as the table gives them), so the highest frequency of a mesh is known."""
+
+    E_table = (-0.06, 0.094)
+
+    def __init__(self, k):
+        self.k = k
+        self.stats = SimpleNamespace(record=lambda *args: None)
+
+    def lookup(self, E1, E2, a1, a2, quantities, derivative=False):
+        assert tuple(quantities) == ("P1", "P2") and not derivative
+        return self.k * (np.sqrt(1.0 + 2.0 * np.stack([E1, E2], axis=1)) - 1.0)
+
+
+def damped_run(n, dt, beta, viscous_in_material, n_steps):
+    """Largest kinetic energy (over the initial one) of a prestretched square, yarns along the
+    edges, started from a small random velocity (every mode), run at the constant step dt with
+    stiffness-proportional damping beta: in the integrator (`CentralDifference`) or, as an
+    impact run does it, as the viscous yarn stress of `YarnStress`."""
+    from fabric_fenicsx.fem.yarn_stress import YarnStress
+    msh = mesh.create_rectangle(MPI.COMM_SELF, [[-A, -A], [A, A]], [n, n], mesh.CellType.quadrilateral)
+    m = Membrane(msh, angle=0.0)
+    clamped = m.boundary_dofs(lambda x: np.isclose(np.abs(x[0]), A) | np.isclose(np.abs(x[1]), A))
+    s = PRESTRETCH - 1.0
+    m.set_displacement(m.interpolate_owned(lambda x: np.vstack([s * x[0], s * x[1], 0 * x[0]])))
+    if viscous_in_material:
+        material = YarnStress(LinearTable(K), m.quadrature_weights_detJ, damage=False, beta=beta,
+                              straight_modulus=K)
+        cd = CentralDifference(m, material, RHO_A, clamped)
+    else:
+        material = None
+        cd = CentralDifference(m, LinearYarnMaterial(K, K), RHO_A, clamped, damping=beta)
+    cd.v[:] = 1e-6 * np.random.default_rng(4).uniform(-1, 1, cd.v.size)
+    cd.v[cd.clamped] = 0.0
+    ke0 = None
+    peak = 0.0
+    for _ in range(n_steps):
+        if material is not None:
+            material.dt_prev = cd._dt_prev
+        e = cd.step(dt)
+        ke0 = e.kinetic if ke0 is None else ke0
+        peak = max(peak, e.kinetic / ke0)
+        if peak > 1e6:
+            break
+    return peak
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial")
+@pytest.mark.parametrize("viscous_in_material", [False, True], ids=["integrator", "yarn_stress"])
+def test_damped_stable_time_step_is_the_stability_limit(viscous_in_material):
+    """`fabric_fenicsx.impact.timestep.stable_dt` (the damped Courant limit of an impact run):
+    with yarns along the edges of a square mesh the highest mesh frequency is omega = 2 c / h
+    (the stretch mode alternating along a row of nodes), and with damping ratio xi = 0.5 there
+    a run at the damped limit 2 / omega (sqrt(1 + xi^2) - xi) = 0.62 x 2 / omega is stable, one
+    4 % above it blows up, and so does one at 0.9 x the undamped limit: the damping lowers the
+    limit as the formula says, neither more nor less (for the viscous stress of the impact runs
+    as for the integrator's damping force)."""
+    from fabric_fenicsx.impact.timestep import stable_dt
+    n = 16
+    h = 2 * A / n
+    omega = 2 * np.sqrt(K / RHO_A) / h
+    beta = 2 * 0.5 / omega
+    dt = stable_dt(K, RHO_A, h, beta, 1.0)
+    assert dt == pytest.approx(2 / omega * (np.sqrt(1.25) - 0.5), rel=1e-12)
+    assert damped_run(n, dt, beta, viscous_in_material, 600) < 2.0
+    assert damped_run(n, 1.04 * dt, beta, viscous_in_material, 600) > 1e6
+    assert damped_run(n, 0.9 * 2 / omega, beta, viscous_in_material, 600) > 1e6
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not available")

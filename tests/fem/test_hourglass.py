@@ -111,3 +111,61 @@ def test_the_residual_is_the_variation_of_the_energy():
 
     eps = 1e-6
     assert work == pytest.approx((energy(u0 + eps * du) - energy(u0 - eps * du)) / (2 * eps), rel=1e-6)
+
+
+def checkerboard(component, n=4):
+    """The hourglass mode of one-point cells: +-1 (x 1e-3 m) alternating from node to node, in
+    ``component`` (0 = x, 2 = z); bilinear x y in every cell, zero gradient at its centre."""
+    h = SIDE / n
+
+    def u(x):
+        out = np.zeros_like(x)
+        out[component] = 1e-3 * np.cos(np.pi * (x[0] + SIDE / 2) / h) * np.cos(np.pi * (x[1] + SIDE / 2) / h)
+        return out
+    return u
+
+
+def test_each_yarn_resists_with_its_own_stiffness():
+    """psi = 1/2 sum_i [k alpha_i |D_p L_i|^2 + ratio T_i (D_z . L_i)^2]: an in-plane checkerboard
+    (yarns along x and y, which it shears alike) stores (alpha_1 + alpha_2) / 2 of its intact
+    energy whatever the tensions, none with both yarns broken; an out-of-plane one stores
+    energy in proportion to the tensions T_1 + T_2 (the geometric stiffness) whatever the
+    integrities, none in a slack cell; without a material (no `follow`) T_i = the modulus."""
+    from fabric_fenicsx.material.contract import DamageState
+    m, hg = membrane_with_control(n=4, q=1, angle=0.0)
+    n = m.n_points
+
+    def energy(mode, a=(1.0, 1.0), T=None):
+        hg.follow(lambda: DamageState(np.full(n, a[0]), np.full(n, a[1])),
+                  None if T is None else (lambda: np.array([np.full(n, T[0]), np.full(n, T[1])])))
+        m.set_displacement(m.interpolate_owned(checkerboard(mode)))
+        return m.term_energies()["hourglass"]
+
+    in_plane = energy(0)
+    assert in_plane > 1e-3 * 0.5 * 0.05 * K * (1e-3) ** 2           # a real hourglass mode
+    for a in ((0.4, 1.0), (0.0, 1.0), (0.3, 0.0), (0.0, 0.0)):
+        assert energy(0, a, T=(123.0, 45.0)) == pytest.approx(0.5 * (a[0] + a[1]) * in_plane, rel=1e-10, abs=1e-30)
+    out_of_plane = energy(2)                                        # T_i = K without a material
+    assert out_of_plane == pytest.approx(in_plane, rel=1e-10)       # the same mode, the same stiffness
+    for T in ((K, 0.0), (0.01 * K, 0.03 * K), (0.0, 0.0)):
+        assert energy(2, (0.2, 0.0), T) == pytest.approx(0.5 * (T[0] + T[1]) / K * in_plane, rel=1e-10, abs=1e-30)
+
+
+def test_the_residual_is_the_variation_of_the_energy_at_frozen_integrity_and_tension():
+    from fabric_fenicsx.material.contract import DamageState
+    m, hg = membrane_with_control(n=4, q=1, angle=0.3)
+    n = m.n_points
+    rng = np.random.default_rng(2)
+    a1, a2 = rng.uniform(0, 1, n), rng.uniform(0, 1, n)
+    T = rng.uniform(0, 0.05 * K, (2, n))
+    hg.follow(lambda: DamageState(a1, a2), lambda: T)
+    u0, du = rng.normal(scale=1e-3, size=m.n_owned_dofs), rng.normal(size=m.n_owned_dofs)
+    m.set_displacement(u0)
+    work = m.global_dot(force(m), du)
+
+    def energy(u):
+        m.set_displacement(u)
+        return m.term_energies()["hourglass"]
+
+    eps = 1e-6
+    assert work == pytest.approx((energy(u0 + eps * du) - energy(u0 - eps * du)) / (2 * eps), rel=1e-6)

@@ -75,7 +75,7 @@ def test_parse_override():
     ("projectile.velocity=fast", "projectile.velocity = 'fast'.*number"),
     ("material.damage=maybe", "material.damage = 'maybe'.*true or false"),
     ("material.damage=1", "material.damage = 1.*true or false"),
-    ("mesh.kind=hex", r"mesh.kind = 'hex'.*\['graded', 'uniform'\]"),
+    ("mesh.kind=hex", r"mesh.kind = 'hex'.*\['graded', 'uniform', 'aligned'\]"),
     ("mesh.n=2.5", "mesh.n = 2.5.*integer"),
     ("boundary.clamped=[\"north\"]", "unknown \\['north'\\].*left"),
     ("boundary.clamped=[]", "at least one"),
@@ -132,3 +132,36 @@ def test_cli_module_does_not_import_dolfinx():
     code = "import sys, fabric_fenicsx.cli.impact, fabric_fenicsx.impact.scene; print('dolfinx' in sys.modules)"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert proc.stdout.strip() == "False", proc.stderr
+
+
+@pytest.mark.parametrize("overrides, warned", [
+    ([], True),                                                       # unstructured graded mesh
+    (["mesh.kind=aligned"], False), (["mesh.kind=uniform"], False),   # Y90: warp along y
+    (["mesh.kind=aligned", "material.angle=45"], True),               # XY45 on a mesh along x, y
+    (["mesh.kind=aligned", "material.angle=-270"], False),
+    (["mesh.element=reduced"], False), (["mesh.element=reduced", "material.angle=30"], False),
+])
+def test_locking_warning_names_the_fix_where_yarns_cross_the_cell_edges(overrides, warned):
+    """The impact command warns for the fully integrated element whenever the mesh's edges do not
+    follow both yarn families (tests/fem/test_hourglass.py: it locks there), and only then."""
+    from fabric_fenicsx.impact.scene import locking_warning
+    scene = load_scene(SCENES / "y90.toml", ["mesh.element=full", *overrides])
+    text = locking_warning(scene)
+    assert bool(text) is warned, text
+    if warned:
+        assert "mesh.element = 'reduced'" in text and "locks" in text
+
+
+def test_cli_warns_for_a_locking_prone_scene_before_any_work():
+    proc = _cli(str(SCENES / "y90.toml"), "--check", "--set", "mesh.element=full", "--set", "mesh.kind=graded")
+    assert proc.returncode == 0, proc.stderr
+    assert "warning: mesh.element = 'full' on the unstructured graded mesh" in proc.stderr
+    quiet = _cli(str(SCENES / "y90.toml"), "--check", "--set", "mesh.element=reduced")
+    assert "warning" not in quiet.stderr, quiet.stderr
+
+
+def test_aligned_meshes_are_checked_like_graded_ones():
+    with pytest.raises(SceneError, match=r"mesh.h_centre = 0.01: must not exceed mesh.h_edge = 0.008"):
+        build_scene({"mesh": {"kind": "aligned", "h_centre": 0.01}})
+    with pytest.raises(SceneError, match=r"mesh.element = 'M3D4R': must be one of \['full', 'reduced'\]"):
+        build_scene({"mesh": {"element": "M3D4R"}})

@@ -117,14 +117,6 @@ def test_damage_update_respects_history_and_broadcasts():
     assert damage_update(np.full((3, 4), 0.5), mu_max, law, MU_CRIT).shape == (3, 4)
 
 
-@pytest.mark.parametrize("alpha_hist, mu_max", [
-    (np.nan, 1.03), (1.0, np.nan), (np.array([1.0, np.nan]), 1.0), (1.5, 1.0), (-0.1, 1.0),
-    (1.0, -1.0), (1.0, np.inf)])
-def test_damage_update_rejects_bad_input(alpha_hist, mu_max):
-    with pytest.raises(ValueError):
-        damage_update(alpha_hist, mu_max, ExponentialDamage(), MU_CRIT)
-
-
 # ------------------------------------------------------------------ statistical bundle
 def _brute_force(d0_over_h0, n, seed, mu, U_crit):
     """(m, n) evaluation of Eq. 2-22 / 2-23 in draw order."""
@@ -232,39 +224,63 @@ def test_fit_beta_of_bundle_is_positive_and_imperfect():
 
 
 # ------------------------------------------------------------------ bad input
-@pytest.mark.parametrize("make", [
-    lambda: ExponentialDamage(beta=0.0),
-    lambda: ExponentialDamage(beta=-1.0),
-    lambda: ExponentialDamage(beta=float("inf")),
-    lambda: ExponentialDamage(width=0.0),
-    lambda: ExponentialDamage(width=float("nan")),
-    lambda: ExponentialDamage(beta="abc"),
-    lambda: FibrilBundle(-0.1),
-    lambda: FibrilBundle(float("nan")),
-    lambda: FibrilBundle(1.0, n=0),
-    lambda: FibrilBundle(1.0, n=2.5),
-    lambda: FibrilBundle(1.0, seed=-1),
-    lambda: FibrilBundle.for_width(width=-0.03),
-    lambda: FibrilBundle.for_width(U_crit=1.0),
-    lambda: BundleDamage(1.0, n=0),
-    lambda: ExponentialDamage().alpha(1.03, 0.99),
-    lambda: ExponentialDamage().alpha([1.03, np.nan], 1.025),
-    lambda: ExponentialDamage().alpha(0.0, 1.025),
-    lambda: FibrilBundle(1.0, n=10).alpha(1.03, 1.0),
-    lambda: FibrilBundle(1.0, n=10).alpha(np.nan, 1.03),
-    lambda: FibrilBundle(1.0, n=10).effective_modulus_ratio(np.inf, 1.03),
-    lambda: damage_law_from_dict({"law": "weibull"}),
-    lambda: damage_law_from_dict({"law": "exponential", "gamma": 1.0}),
-    lambda: damage_law_from_dict({"law": "bundle"}),
-    lambda: damage_law_from_dict("exponential"),
-    lambda: fit_beta([1.03, 1.04], [1.0], 1.025),
-    lambda: fit_beta([1.03, 1.04], [0.5, np.nan], 1.025),
-    lambda: fit_beta([1.03, 1.04], [0.5, 1.5], 1.025),
-    lambda: fit_beta([1.0, 1.03, 1.1], [1.0, 0.5, 0.0], 1.025),  # one sample in the range
+# Each bad input raises a ValueError whose message names the argument and what is valid (the
+# pattern), not an error of Python or numpy on the way (e.g. float("abc")).
+@pytest.mark.parametrize("make, message", [
+    (lambda: ExponentialDamage(beta=0.0), r"beta must be finite and > 0, got 0\.0"),
+    (lambda: ExponentialDamage(beta=-1.0), r"beta must be finite and > 0, got -1\.0"),
+    (lambda: ExponentialDamage(beta=float("inf")), r"beta must be finite and > 0, got inf"),
+    (lambda: ExponentialDamage(width=0.0), r"width must be finite and > 0, got 0\.0"),
+    (lambda: ExponentialDamage(width=float("nan")), r"width must be finite and > 0, got nan"),
+    (lambda: ExponentialDamage(beta="abc"), r"beta must be a real number, got 'abc'"),
+    (lambda: FibrilBundle(-0.1), r"d0_over_h0 must be finite and >= 0, got -0\.1"),
+    (lambda: FibrilBundle(float("nan")), r"d0_over_h0 must be finite and >= 0, got nan"),
+    (lambda: FibrilBundle("abc"), r"d0_over_h0 must be a real number, got 'abc'"),
+    (lambda: FibrilBundle(1.0, n=0), r"n must be an integer >= 1, got 0"),
+    (lambda: FibrilBundle(1.0, n=2.5), r"n must be an integer >= 1, got 2\.5"),
+    (lambda: FibrilBundle(1.0, seed=-1), r"seed must be an integer >= 0, got -1"),
+    (lambda: FibrilBundle.for_width(width=-0.03), r"width must be finite and > 0, got -0\.03"),
+    (lambda: FibrilBundle.for_width(U_crit=1.0), r"U_crit must be a finite critical stretch > 1, got 1\.0"),
+    (lambda: BundleDamage(1.0, n=0), r"n must be an integer >= 1, got 0"),
+    (lambda: ExponentialDamage().alpha(1.03, 0.99), r"mu_crit must be a finite critical stretch > 1, got 0\.99"),
+    (lambda: ExponentialDamage().alpha(1.03, "x"), r"mu_crit must be a real number, got 'x'"),
+    (lambda: ExponentialDamage().alpha([1.03, np.nan], 1.025), r"mu contains non-finite values \(e\.g\. nan\)"),
+    (lambda: ExponentialDamage().alpha(0.0, 1.025), r"mu must be a stretch > 0, got minimum 0\.0"),
+    (lambda: ExponentialDamage().alpha("abc", 1.025), r"mu must be a real number or an array of them, got 'abc'"),
+    (lambda: FibrilBundle(1.0, n=10).alpha(1.03, 1.0), r"U_crit must be a finite critical stretch > 1, got 1\.0"),
+    (lambda: FibrilBundle(1.0, n=10).alpha(np.nan, 1.03), r"mu contains non-finite values \(e\.g\. nan\)"),
+    (lambda: FibrilBundle(1.0, n=10).effective_modulus_ratio(np.inf, 1.03),
+     r"mu contains non-finite values \(e\.g\. inf\)"),
+    (lambda: damage_law_from_dict({"law": "weibull"}), r"law must be one of \['bundle', 'exponential'\], got 'weibull'"),
+    (lambda: damage_law_from_dict({"law": "exponential", "gamma": 1.0}),
+     r"unknown parameter\(s\) \['gamma'\] for law 'exponential'; valid: \['beta', 'width'\]"),
+    (lambda: damage_law_from_dict({"law": "bundle"}), r"law 'bundle' needs d0_over_h0"),
+    (lambda: damage_law_from_dict("exponential"), r"damage law description must be a dict, got 'exponential'"),
+    (lambda: fit_beta([1.03, 1.04], [1.0], 1.025), r"mu and alpha must be 1-D of equal length, got shapes \(2,\) and \(1,\)"),
+    (lambda: fit_beta([1.03, 1.04], [0.5, np.nan], 1.025), r"fit_beta: mu or alpha contains non-finite values"),
+    (lambda: fit_beta([1.03, 1.04], [0.5, 1.5], 1.025), r"fit_beta: alpha must lie in \[0, 1\], got range \[0\.5, 1\.5\]"),
+    (lambda: fit_beta([1.0, 1.03, 1.1], [1.0, 0.5, 0.0], 1.025),   # one sample in the range
+     r"fit_beta: need >= 2 samples with mu in \(1\.025, 1\.055\), got 1"),
+    (lambda: fit_beta("ab", [1.0], 1.025), r"fit_beta: mu must be a real number or an array of them, got 'ab'"),
 ])
-def test_bad_input_raises_value_error(make):
-    with pytest.raises(ValueError):
+def test_bad_input_raises_value_error(make, message):
+    with pytest.raises(ValueError, match=message):
         make()
+
+
+@pytest.mark.parametrize("alpha_hist, mu_max, message", [
+    (np.nan, 1.03, r"damage_update: alpha_hist contains NaN"),
+    (np.array([1.0, np.nan]), 1.0, r"damage_update: alpha_hist contains NaN"),
+    (1.5, 1.0, r"damage_update: alpha_hist must lie in \[0, 1\], got range \[1\.5, 1\.5\]"),
+    (-0.1, 1.0, r"damage_update: alpha_hist must lie in \[0, 1\]"),
+    ("a", 1.0, r"damage_update: alpha_hist must be a real number or an array of them, got 'a'"),
+    (1.0, np.nan, r"mu contains non-finite values \(e\.g\. nan\)"),
+    (1.0, -1.0, r"mu must be a stretch > 0, got minimum -1\.0"),
+    (1.0, np.inf, r"mu contains non-finite values \(e\.g\. inf\)"),
+])
+def test_damage_update_rejects_bad_input(alpha_hist, mu_max, message):
+    with pytest.raises(ValueError, match=message):
+        damage_update(alpha_hist, mu_max, ExponentialDamage(), MU_CRIT)
 
 
 def test_error_messages_name_field_and_value():

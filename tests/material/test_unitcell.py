@@ -165,10 +165,41 @@ def test_uniaxial_stress_has_zero_fill_force_and_contracts(cell):
     np.testing.assert_allclose(r2.P1, r.P1, rtol=1e-8)
 
 
-def test_compression_solves(cell):
-    for E in [(-0.03, 0.0), (0.0, -0.03), (0.04, -0.03), (-0.03, -0.03)]:
-        r = cell.solve(*E)
-        assert np.isfinite(r.P1) and np.isfinite(r.P2)
+@pytest.mark.parametrize("E1,E2", [(-0.03, 0.0), (0.0, -0.03), (0.04, -0.03), (-0.03, -0.03)])
+def test_compressed_states_are_derivatives_of_the_stored_energy(cell, E1, E2):
+    """In compression too the cell is hyperelastic: P_i = dPsi/dlambda_i (central differences)."""
+    r = cell.solve(E1, E2)
+    h = 1e-6
+    l1, l2 = lam(E1), lam(E2)
+    dPsi1 = (cell.solve(E_of(l1 + h), E2).Psi - cell.solve(E_of(l1 - h), E2).Psi) / (2 * h)
+    dPsi2 = (cell.solve(E1, E_of(l2 + h)).Psi - cell.solve(E1, E_of(l2 - h)).Psi) / (2 * h)
+    scale = max(abs(r.P1), abs(r.P2))
+    assert abs(dPsi1 - r.P1) < 1e-6 * scale and abs(dPsi2 - r.P2) < 1e-6 * scale
+
+
+def test_separated_yarns_respond_independently(cell):
+    """Compressed yarns bow apart (V = 0): each is then an elastica on its own. A compressed
+    yarn resists with a small negative force (bending), an unstrained one carries nothing, the
+    energies add up and the tangent has no coupling; the same yarn strain gives the same force
+    whatever the other yarn does."""
+    warp, fill, both = cell.solve(-0.03, 0.0), cell.solve(0.0, -0.03), cell.solve(-0.03, -0.03)
+    for r in (warp, fill, both):
+        assert r.V == 0.0 and not r.in_contact
+        assert r.tangent[0, 1] == 0.0 and r.tangent[1, 0] == 0.0
+    assert -0.05 * 148e3 < warp.P1 < 0 and abs(warp.P2) < 1e-6
+    assert -0.05 * 148e3 < fill.P2 < 0 and abs(fill.P1) < 1e-6
+    np.testing.assert_allclose([both.P1, both.P2], [warp.P1, fill.P2], rtol=1e-9)
+    np.testing.assert_allclose(both.Psi, warp.Psi + fill.Psi, rtol=1e-9)
+
+
+def test_a_stretched_warp_keeps_a_compressed_fill_in_tension(cell):
+    """Crimp interchange: with the warp at E1 = 0.04 the yarns stay in contact and the fill,
+    although shortened (E2 = -0.03), is pulled taut (P2 > 0); the tangent is symmetric."""
+    r = cell.solve(0.04, -0.03)
+    assert r.in_contact and r.V > 0 and abs(r.D) < 1e-15
+    assert r.P1 > 0 and r.P2 > 0
+    t = r.tangent
+    assert t[0, 1] > 0 and abs(t[0, 1] - t[1, 0]) < 1e-6 * abs(t[0, 1])
 
 
 @pytest.mark.parametrize("args", [(float("nan"), 0.0), (0.01, float("inf")), (-0.6, 0.0)])

@@ -3,7 +3,7 @@
 Closed form (fabric_fenicsx.studies.smith) checked against independent relations (jump conditions at the
 fronts, the quartic obtained by squaring Smith's relation, the small-strain expansion); the
 explicit membrane solver checked against the closed form at two bar speeds (strains of about 1 %
-and 3 %) on two coarse meshes.
+and 3 %) on two coarse meshes, within the README's 0.6 %.
 """
 import numpy as np
 import pytest
@@ -125,14 +125,19 @@ def runs():
             for V in VELOCITIES for n in LEVELS}
 
 
+README_TOLERANCE = 0.006
+"""The README's promise: strain and the longitudinal and transverse wave speeds within 0.6 % at 75
+and 175 m/s (measured: largest 0.51 %, the laboratory kink speed at 75 m/s on 400 elements)."""
+
+
 @pytest.mark.parametrize("V", VELOCITIES)
-def test_simulation_matches_smith_within_2_percent(runs, V):
+def test_simulation_matches_smith_within_the_readme_tolerance(runs, V):
     for n in LEVELS:
         r = runs[V, n]
         err = r.errors
         for quantity in ("strain", "strain_inclined", "longitudinal_speed",
                          "transverse_speed_lab", "transverse_speed_material"):
-            assert err[quantity] < 0.02, (V, n, quantity, err[quantity])
+            assert err[quantity] < README_TOLERANCE, (V, n, quantity, err[quantity])
 
 
 @pytest.mark.parametrize("V", VELOCITIES)

@@ -9,6 +9,7 @@ solve, are checked here through their geometry and run in the study.
 """
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -115,15 +116,115 @@ def assert_sound(rec):
         assert stop["step"] > 0 and stop["time"] > 0
 
 
-@pytest.mark.parametrize("name", ["friction-0", "friction-2", "angle-30", "edge-20mm"])
-def test_contact_cases_complete_with_a_small_energy_error(tmp_path, name):
-    rec = run_case(by_name(name), tmp_path / name, base_overrides=SHORT)
+CONTACT_CASES = ("friction-0", "friction-2", "angle-30", "edge-20mm")
+
+
+@pytest.fixture(scope="module")
+def contact_runs(tmp_path_factory):
+    """The four contact cases run short by the study's own `run_case` (outcome record and
+    verdict), each with its simulation kept for a look at the fields at the end."""
+    from fabric_fenicsx.studies import stability
+
+    kept = {}
+    original = stability.run_simulation
+
+    def keeping(scene, folder, keep):
+        try:
+            kept["summary"] = original(scene, folder, keep)
+            return kept["summary"]
+        finally:
+            kept["sim"] = keep.get("sim")
+
+    runs = {}
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(stability, "run_simulation", keeping)
+        for name in CONTACT_CASES:
+            rec = run_case(by_name(name), tmp_path_factory.mktemp(name), base_overrides=SHORT)
+            runs[name] = SimpleNamespace(rec=rec, sim=kept.pop("sim"), summary=kept.pop("summary", None))
+    return runs
+
+
+def point_coordinates(sim):
+    """Reference (x, y) of the owned quadrature points, in the membrane's point order."""
+    import ufl
+    from dolfinx import fem
+
+    from fabric_fenicsx.fem.membrane import _BASIX_CELL
+    import basix
+
+    m = sim.membrane
+    pts, _ = basix.make_quadrature(_BASIX_CELL[m.msh.topology.cell_type.name], m.quadrature_degree)
+    xq = fem.Expression(ufl.SpatialCoordinate(m.msh), pts).eval(np.arange(m.n_cells, dtype=np.int32))
+    return xq.reshape(-1, 2)
+
+
+def strained_band(sim):
+    """Direction (degrees in [0, 180)) and centre of the band of quadrature points whose warp
+    strain E1 exceeds half its largest value: the principal axis of the points' area-weighted
+    second moment about the impact point, and their area-weighted mean position."""
+    mat, w = sim.material, sim.membrane.quadrature_weights_detJ
+    sel = mat.E1 > 0.5 * mat.E1.max()
+    d = point_coordinates(sim)[sel] - sim.axis_xy
+    moment = np.einsum("k,ki,kj->ij", w[sel], d, d)
+    _, vectors = np.linalg.eigh(moment)
+    axis = vectors[:, 1]
+    return float(np.degrees(np.arctan2(axis[1], axis[0])) % 180.0), sim.axis_xy + np.average(d, axis=0, weights=w[sel])
+
+
+def sliding_under_the_face(sim):
+    """Mean in-plane displacement (m) of the nodes under the projectile's face (r < 0.8 R)."""
+    u = sim.cd.u.reshape(-1, 3)
+    r = np.hypot(sim.X[:, 0] - sim.axis_xy[0], sim.X[:, 1] - sim.axis_xy[1])
+    face = r < 0.8 * sim.projectile.radius
+    return float(np.hypot(u[face, 0], u[face, 1]).mean())
+
+
+@pytest.mark.parametrize("name", CONTACT_CASES)
+def test_contact_cases_complete_with_a_small_energy_error(contact_runs, name):
+    rec = contact_runs[name].rec
     assert_sound(rec)
     s = rec["summary"]
     assert rec["status"] == "completed" and s["end_reason"] == "time_limit"
     assert rec["assessment"]["verdict"] == "ok" and rec["fragments"]["free_fragments"] == 0
     assert s["residual_velocity"] < 57.3          # the fabric took energy
-    assert s["energy_error"] < 0.01
+    assert s["energy_error"] < 0.001              # measured 4.2e-4 (at the first contact)
+
+
+def test_friction_holds_the_fabric_under_the_face(contact_runs):
+    """Frictionless contact dissipates nothing by friction and lets the fabric slide under the
+    flat face as the cone pulls it in; friction 2 dissipates energy, holds the nodes under the
+    face (measured: mean in-plane displacement 3.9e-5 against 7.0e-5 m) and slows the projectile
+    a little more (56.733 against 56.738 m/s at 0.15 ms)."""
+    run0, run2 = contact_runs["friction-0"], contact_runs["friction-2"]
+    e0, e2 = run0.summary["energies"], run2.summary["energies"]
+    assert e0["friction_dissipation_estimate"] == 0.0
+    assert e2["friction_dissipation_estimate"] > 0.02 * e2["contact_dissipation"]
+    assert sliding_under_the_face(run2.sim) < 0.7 * sliding_under_the_face(run0.sim)
+    assert run2.summary["residual_velocity"] < run0.summary["residual_velocity"]
+
+
+@pytest.mark.parametrize("name, angle", [("friction-0", 90.0), ("angle-30", 30.0)])
+def test_the_warp_strain_runs_along_the_material_angle(contact_runs, name, angle):
+    """The yarns through the impact zone carry the load: the points of large warp strain E1
+    form a band through the impact point along the warp, at the scene's material.angle from
+    global X (Y90: 90 degrees; angle-30: 30 degrees; measured 89.8 and 32.4)."""
+    direction, _ = strained_band(contact_runs[name].sim)
+    assert abs((direction - angle + 90.0) % 180.0 - 90.0) < 5.0, direction
+
+
+def test_an_impact_near_a_clamped_edge_strains_the_short_yarns_to_it(contact_runs):
+    """20 mm from the clamped bottom edge the warp yarns (along Y) between the projectile and
+    that edge are short and take the most strain: the points of large E1 gather below the
+    impact point (measured 11 mm below it; centred impact: at the impact point), and the
+    deepest node is under the projectile there."""
+    sim = contact_runs["edge-20mm"].sim
+    assert np.allclose(sim.axis_xy, [0.0, EDGE_Y])
+    _, centre = strained_band(sim)
+    assert -0.27305 / 2 < centre[1] < EDGE_Y - 0.005, centre
+    _, centred = strained_band(contact_runs["friction-0"].sim)
+    assert np.hypot(*centred) < 0.003, centred
+    deepest = sim.X[np.argmin(sim.cd.u[2::3]), :2]
+    assert np.hypot(*(deepest - sim.axis_xy)) < sim.projectile.radius
 
 
 @pytest.fixture(scope="module")
@@ -137,6 +238,8 @@ def test_1000_m_per_s_plug_ends_as_a_perforation(v1000):
     flies on with it: the run ends as a perforation, not as a blow-up."""
     assert_sound(v1000)
     assert v1000["status"] == "completed" and v1000["summary"]["end_reason"] == "perforated"
+    assert v1000["summary"]["energy_error"] < 0.002                  # measured 4.5e-4
+    assert v1000["summary"]["deleted_cells"] > 0 and v1000["summary"]["eroded_cells"] > 0
     assert v1000["fragments"]["free_fragments"] >= 1
     assert v1000["assessment"]["verdict"] == "ok"
 
@@ -147,14 +250,18 @@ def test_strains_beyond_the_table_are_counted_and_stay_finite(tmp_path):
     assert_sound(rec)
     assert rec["status"] == "completed" and rec["summary"]["points_beyond_table"] > 0
     assert rec["assessment"]["verdict"] == "ok"
+    assert rec["summary"]["energy_error"] < 0.002                    # measured 5.5e-4
 
 
 def test_large_damaged_region_removes_cells_within_the_energy_limit(tmp_path):
+    """docs/stability.md records an energy error of 0.83 % for this case (0.829 % measured on
+    this short run too): the balance must stay within 1 %, not the 5 % guard."""
     rec = run_case(by_name("large-damage"), tmp_path / "ld",
                    base_overrides=SHORT[:-1] + ("run.t_end=0.0001",))
     assert_sound(rec)
     s = rec["summary"]
-    assert s["deleted_cells"] + s["eroded_cells"] > 0
+    assert s["eroded_cells"] > 20                                     # measured 31
+    assert s["energy_error"] < 0.01
 
 
 def test_energy_guard_stops_a_damage_on_run_naming_step_time_and_place(tmp_path):
