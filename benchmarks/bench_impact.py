@@ -7,6 +7,12 @@ assembly of the internal force, contact, output and the rest, and the total wall
 tiles the surrogate had to solve (a cold cache) are shown apart: they are a one-off cost.
 
     .venv/bin/python benchmarks/bench_impact.py [--scene demos/scenes/y90.toml] [--set KEY=VALUE ...]
+        [--reference KEY=VALUE ...]
+
+With ``--reference`` the same scene also runs with those keys changed (for example the settings
+before issue 13: ``--reference mesh.element=full --reference mesh.kind=graded --reference
+mesh.h_centre=1.41e-3``), and the ratio of the two runs' wall times (without surrogate tile
+solves) is printed, both measured in this one process.
 """
 
 import argparse
@@ -26,16 +32,27 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default=str(ROOT / "demos" / "scenes" / "y90.toml"))
     parser.add_argument("--set", dest="overrides", action="append", default=[])
+    parser.add_argument("--reference", action="append", default=[],
+                        help="also run with these keys changed and print the wall-time ratio")
     args = parser.parse_args()
-    overrides = ["projectile.velocity=57.3", "output.png=false", "output.progress_interval=0",
-                 *args.overrides]
-    scene = load_scene(args.scene, overrides)
+    base = ["projectile.velocity=57.3", "output.png=false", "output.progress_interval=0"]
+    s = bench(load_scene(args.scene, [*base, *args.overrides]))
+    if args.reference:
+        r = bench(load_scene(args.scene, [*base, *args.overrides, *args.reference]))
+        if MPI.COMM_WORLD.rank == 0:
+            run, ref = (x["wall_time_s"] - x["time_total_s"]["surrogate_tiles"] for x in (s, r))
+            print(f"ratio of run times (without tile solves): {run:.1f} s / {ref:.1f} s = "
+                  f"{run / ref:.2f} x the reference {args.reference}")
+
+
+def bench(scene):
+    """Run ``scene`` in a temporary folder and print its timings; return its summary."""
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
         s = run_impact(scene, out, verbose=False)
         total = time.perf_counter() - t0
     if MPI.COMM_WORLD.rank:
-        return
+        return s
     per = s["time_per_step_s"]
     tiles = s["time_total_s"]["surrogate_tiles"]
     print(f"impact benchmark: {scene.source} at {s['v0']:g} m/s, {s['n_cells']} cells, "
@@ -62,6 +79,7 @@ def main():
     print(f"  run {s['wall_time_s']:.1f} s, set-up {s['build_time_s']:.1f} s, total {total:.1f} s")
     print(f"  result: residual velocity {s['residual_velocity']:.2f} m/s, absorbed {s['absorbed_energy']:.2f} J, "
           f"energy error {s['energy_error']:.2e}")
+    return s
 
 
 if __name__ == "__main__":

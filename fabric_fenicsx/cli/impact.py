@@ -71,6 +71,10 @@ def run(args: argparse.Namespace) -> int:
     scene, problem = _checked(lambda: _load(args))
     if _agreed_problem(problem):
         return 2
+    from fabric_fenicsx.impact.scene import locking_warning
+
+    if locking_warning(scene) and _rank() == 0:
+        _warning(locking_warning(scene))
     if args.check:
         if _rank() == 0:
             print(json.dumps({"source": scene.source, **scene.to_dict()}, indent=1))

@@ -106,19 +106,31 @@ class IsotropicShear(MembraneTerm):
 
 
 class HourglassControl(MembraneTerm):
-    """Stiffness hourglass control for one-point integrated quadrilaterals (``quadrature_degree``
-    1 for the yarn stresses): psi = (k_hg / 2) |Grad u - <Grad u>|^2, with <Grad u> the cell
-    average of the displacement gradient and k_hg = ratio x modulus (N/m).
+    """Hourglass control for one-point integrated quadrilaterals (``quadrature_degree`` 1 for the
+    yarn stresses), yarn by yarn, with the stiffness each yarn has against the fluctuation:
+
+        psi = 1/2 sum_i [ k_hg alpha_i |D_p L_i|^2 + ratio T_i (D_z . L_i)^2 ],
+        D = Grad u - <Grad u>,
+
+    with <Grad u> the cell average of the displacement gradient, D_p its in-plane rows and D_z
+    its out-of-plane row, L_i the reference yarn directions, k_hg = ratio x modulus (N/m),
+    alpha_i the cell's yarn integrities and T_i = P_i / lambda_i >= 0 its yarn tensions (N/m).
 
     With one Gauss point a bilinear quadrilateral has zero-energy (hourglass) modes; the
     deviation of Grad u from its cell average is zero for every linear field and non-zero for
     exactly those modes, so penalising it controls them without resisting any homogeneous
-    deformation (a patch test passes). It is the physical counterpart of Flanagan and
-    Belytschko's stiffness control (Int. J. Numer. Meth. Eng. 17 (1981) 679-706): a fraction
-    ``ratio`` of the yarns' stiffness acting on the in-cell gradient fluctuation only. The
-    average is taken with the 2 x 2 Gauss rule the term is integrated with, so the residual
-    k_hg (Grad u - <Grad u>) : Grad v is the exact variation of the energy. Its wave modulus is
-    bounded by k_hg (see :meth:`wave_modulus`).
+    deformation (a patch test passes). This is a physical stabilisation in the sense of
+    Flanagan and Belytschko (Int. J. Numer. Meth. Eng. 17 (1981) 679-706): a fraction ``ratio``
+    of the stiffness each yarn really has against the in-cell fluctuation of its own tangent,
+    its material stiffness in the plane (alpha_i x the intact straight yarn's, Eq. 2-31: a
+    broken yarn resists nothing) and its geometric stiffness P_i / lambda_i out of the plane (a
+    membrane resists a transverse wrinkle only through its tension; the material stiffness there
+    stored 95 % of the hourglass energy, a third of the energy a small impact absorbed).
+    Until :meth:`follow` connects the term to a material, alpha_i = 1 and T_i = modulus. The
+    average is taken with the 2 x 2 Gauss rule the term is integrated with, so the residual is
+    the exact variation of psi at frozen alpha_i, T_i (constant in the cell, updated before
+    every assembly). Its wave modulus is bounded by k_hg (T_i is at most the straight yarn's
+    tension at failure, far below its modulus).
     """
 
     name = "hourglass"
@@ -128,8 +140,18 @@ class HourglassControl(MembraneTerm):
         for label, value in (("ratio", ratio), ("modulus", modulus)):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"HourglassControl {label} must be a finite number >= 0, got {value!r}")
-        self.k = float(ratio) * float(modulus)
+        self.ratio, self.modulus = float(ratio), float(modulus)
+        self.k = self.ratio * self.modulus
         self._mean = None
+        self._integrity = None
+        self._tension = None
+
+    def follow(self, state, tension=None) -> None:
+        """Follow the material: ``state()`` returns its
+        :class:`~fabric_fenicsx.material.contract.DamageState` at the owned quadrature points
+        (cell by cell) and ``tension()`` its yarn tensions P_i / lambda_i there (shape (2, n),
+        N/m); both are read before every assembly."""
+        self._integrity, self._tension = state, tension
 
     def _setup(self, m) -> None:
         cell = m.msh.ufl_cell()
@@ -143,8 +165,23 @@ class HourglassControl(MembraneTerm):
         w = detJ * weights[np.newaxis, :]
         self._w = w / w.sum(axis=1, keepdims=True)
         self._dofs = space.dofmap.list.array[:m.n_cells]
+        scalar = fem.FunctionSpace(m.msh, ("DG", 0))
+        self._alpha = [fem.Function(scalar, name=f"hourglass_alpha{i}") for i in (1, 2)]
+        self._T = [fem.Function(scalar, name=f"hourglass_tension{i}") for i in (1, 2)]
+        for a, T in zip(self._alpha, self._T):
+            a.x.array[:] = 1.0
+            T.x.array[:] = self.modulus
+        self._cell_dofs = scalar.dofmap.list.array[:m.n_cells]
+        wq = m.quadrature_weights_detJ.reshape(m.n_cells, -1)
+        self._wq = wq / wq.sum(axis=1, keepdims=True)
         self._dx = ufl.dx(domain=m.msh, metadata={"quadrature_degree": self.DEGREE,
                                                   "quadrature_scheme": "default"})
+
+    def _set_cellwise(self, functions, values) -> None:
+        """Cell averages of point values (one row per yarn) into DG0 functions."""
+        for f, v in zip(functions, values):
+            f.x.array[self._cell_dofs] = (self._wq * np.reshape(v, self._wq.shape)).sum(axis=1)
+            f.x.scatter_forward()
 
     def prepare(self, m) -> None:
         if self._mean is None:
@@ -152,23 +189,36 @@ class HourglassControl(MembraneTerm):
         grad = self._grad.eval(m._cells).reshape(m.n_cells, self._w.shape[1], 6)
         self._mean.x.array.reshape(-1, 6)[self._dofs] = np.einsum("cp,cpk->ck", self._w, grad)
         self._mean.x.scatter_forward()
+        ones = np.ones(m.n_points)
+        state = self._integrity() if self._integrity is not None else None
+        self._set_cellwise(self._alpha, (ones, ones) if state is None else (state.alpha1, state.alpha2))
+        self._set_cellwise(self._T, (self.modulus * ones,) * 2 if self._tension is None
+                           else np.maximum(self._tension(), 0.0))
 
     def measure(self, m):
         if self._mean is None:
             self._setup(m)
         return self._dx
 
-    def _fluctuation(self, m):
+    def _parts(self, m, w):
+        """[(stiffness, D_p L_i . w_p L_i + D_z . L_i w_z . L_i split)] for both yarns, as UFL:
+        the bilinear form of psi between the fluctuation D and a gradient w."""
         if self._mean is None:
             self._setup(m)
-        return ufl.grad(m.u) - self._mean
+        d = ufl.grad(m.u) - self._mean
+        total = 0
+        for a, T, L in zip(self._alpha, self._T, (m.L1, m.L2)):
+            dL, wL = d * L, w * L
+            total += self.k * a * (dL[0] * wL[0] + dL[1] * wL[1]) + self.ratio * T * dL[2] * wL[2]
+        return total
 
     def energy_density(self, m):
-        d = self._fluctuation(m)
-        return 0.5 * self.k * ufl.inner(d, d)
+        if self._mean is None:
+            self._setup(m)
+        return 0.5 * self._parts(m, ufl.grad(m.u) - self._mean)
 
     def integrand(self, m):
-        return self.k * ufl.inner(self._fluctuation(m), ufl.grad(m.v))
+        return self._parts(m, ufl.grad(m.v))
 
     def wave_modulus(self) -> float:
         return self.k

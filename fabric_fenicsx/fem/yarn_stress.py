@@ -184,6 +184,12 @@ class YarnStress:
         self.alpha1, self.alpha2 = a1, a2
         return P_el[0] + P_v[0], P_el[1] + P_v[1]
 
+    def tension(self) -> np.ndarray:
+        """Yarn tensions P_i / lambda_i (N/m, shape (2, n)) at every owned point after the last
+        :meth:`update`, elastic part (zero at removed points and slack yarns): the geometric
+        stiffness of each yarn against a transverse perturbation."""
+        return self.P_el / self.lam
+
     def wave_modulus(self, lookahead: float = 0.0) -> float:
         """Largest wave modulus (N/m) over this rank's live points: the largest eigenvalue of
         the symmetric part of dP_i/dlambda_j (damage frozen, rows of yarns that can carry

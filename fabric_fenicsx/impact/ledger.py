@@ -49,6 +49,8 @@ class EnergyLedger:
     t_last_contact: float | None = None
     damage_onset_time: float | None = None
     damage_onset_deflection: float | None = None
+    first_removal_deflection: float | None = None   # central deflection when a cell first goes
+    peak_deflection: float = 0.0                     # largest central deflection of the run
 
     def book_step(self, sums: dict[str, float], maxima: dict[str, float]) -> None:
         """Take one step's reduced values (see ``ImpactSimulation._reduce``)."""
@@ -62,5 +64,8 @@ class EnergyLedger:
         self.n_contact = int(sums["n_contact"])
         self.contact_force = sums["contact_force"]
         self.central_uz = sums["central_uz"]
+        self.peak_deflection = max(self.peak_deflection, -self.central_uz)
+        if (sums["deleted"] or sums["eroded"]) and self.first_removal_deflection is None:
+            self.first_removal_deflection = -self.central_uz
         self.z_max = maxima["z_max"]
         self.n_front = int(sums["n_front"])

@@ -25,7 +25,8 @@ from types import SimpleNamespace
 from typing import Any, Callable
 
 __all__ = ["InputError", "SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "load_scene", "load_fabric",
-           "check_output_dir", "parse_override", "describe_schema"]
+           "check_output_dir", "parse_override", "describe_schema", "locking_warning",
+           "yarns_follow_the_mesh"]
 
 EDGES = ("left", "right", "bottom", "top")
 """Edge names: x = -side/2, x = +side/2, y = -side/2, y = +side/2 (global X-Y, Table 3)."""
@@ -172,10 +173,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
                              "isotropic in-plane shear stiffness G of the weak-form term "
                              "fabric_fenicsx.fem.terms.IsotropicShear (0 = off: the thesis's membrane "
                              "has none, Sec. 2.1)"),
+        "hourglass": Key(0.05, number(0.0, 1.0, lo_open=True),
+                         "hourglass control stiffness of the reduced element as a fraction of the "
+                         "straight intact yarn modulus (fabric_fenicsx.fem.terms.HourglassControl)"),
     },
     "mesh": {
-        "kind": Key("graded", choice("graded", "uniform"),
-                    "graded = gmsh quadrilaterals fine at the centre; uniform = n x n squares"),
+        "kind": Key("graded", choice("graded", "uniform", "aligned"),
+                    "graded = unstructured gmsh quadrilaterals fine at the impact point; uniform = "
+                    "n x n squares; aligned = a structured grid along x and y graded like the gmsh mesh "
+                    "(h_centre, h_edge, refine_radius, grading)"),
         "side": Key(0.27305, number(0.0, lo_open=True, unit="m"),
                     "side of the square fabric (10.75 in, Sec. 4.1)"),
         "h_centre": Key(2.0e-3, number(0.0, lo_open=True, unit="m"),
@@ -185,7 +191,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "refine_radius": Key(0.02, number(0.0, unit="m"), "radius kept at h_centre (graded)"),
         "grading": Key(0.1, number(0.0, 1.0, lo_open=True), "size growth per unit distance (graded)"),
         "n": Key(64, integer(2), "cells per side (uniform)"),
-        "quadrature_degree": Key(2, integer(1), "quadrature degree of P1, P2 (2 = 2 x 2 Gauss points)"),
+        "element": Key("reduced", choice("full", "reduced"),
+                       "full = bilinear quadrilateral, yarn stresses at the Gauss points of "
+                       "quadrature_degree; reduced = one point per cell with hourglass control "
+                       "(membrane.hourglass), which does not lock when the yarns cross the cell edges "
+                       "(docs/convergence.md)"),
+        "quadrature_degree": Key(2, integer(1), "quadrature degree of P1, P2 (2 = 2 x 2 Gauss points; "
+                                 "element = full only)"),
     },
     "projectile": {
         "diameter": Key(0.0254, number(0.0, lo_open=True, unit="m"),
@@ -219,8 +231,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                          "time step = dt_safety x stable limit (smallest cell, largest wave speed)"),
         "dt_check_interval": Key(10, integer(1), "steps between re-checks of the stable time step"),
         "damping": Key(0.1, number(0.0, 1.0),
-                       "stiffness-proportional damping as a fraction of critical at the highest mesh "
-                       "frequency of the straight intact yarns (0.1: see docs/impact_model.md)"),
+                       "stiffness-proportional damping as a fraction of critical at the highest "
+                       "frequency of a membrane of unit cells (straight intact yarns, 2 w_1 x 2 w_2 cells): "
+                       "the same coefficient on every mesh (docs/impact_model.md)"),
         "release_time": Key(20.0e-6, number(0.0, lo_open=True, unit="s"),
                             "time without contact after which a perforation or rebound is final"),
         "max_steps": Key(0, integer(0), "stop after this many steps (0 = no limit)"),
@@ -354,7 +367,7 @@ def build_scene(raw: dict[str, Any], overrides: list[str] | tuple[str, ...] = ()
 
 def _cross_check(d: dict[str, dict[str, Any]]) -> None:
     m, p = d["mesh"], d["projectile"]
-    if m["kind"] == "graded":
+    if m["kind"] in ("graded", "aligned"):
         if m["h_centre"] > m["h_edge"]:
             raise SceneError(f"mesh.h_centre = {m['h_centre']!r}: must not exceed mesh.h_edge = {m['h_edge']!r}")
         if m["h_edge"] > m["side"] / 2:
@@ -369,6 +382,27 @@ def _cross_check(d: dict[str, dict[str, Any]]) -> None:
         if abs(p[axis]) >= reach:
             raise SceneError(f"projectile.{axis} = {p[axis]!r}: the projectile's face must lie inside the "
                              f"fabric, |{axis}| < mesh.side / 2 - diameter / 2 = {reach!r}")
+
+
+def yarns_follow_the_mesh(scene: Scene) -> bool:
+    """Whether every cell edge of the scene's mesh runs along a yarn: a structured mesh
+    (``uniform`` or ``aligned``, edges along x and y) with the warp at a multiple of 90 degrees."""
+    angle = scene.material.angle % 90.0
+    return scene.mesh.kind in ("uniform", "aligned") and min(angle, 90.0 - angle) < 1e-9
+
+
+def locking_warning(scene: Scene) -> str:
+    """The warning the impact command prints for a locking-prone combination ("" for none):
+    the fully integrated element on a mesh whose cell edges do not follow the yarns, where it
+    shows spurious yarn strain of first order in h (intra-ply shear locking,
+    tests/fem/test_hourglass.py) and starts damage too early."""
+    if scene.mesh.element != "full" or yarns_follow_the_mesh(scene):
+        return ""
+    where = ("the unstructured graded mesh" if scene.mesh.kind == "graded"
+             else f"a mesh along x and y with the warp at {scene.material.angle:g} degrees")
+    return (f"mesh.element = 'full' on {where}: the yarns cross the cell edges and the fully "
+            "integrated element locks in intra-ply shear (spurious yarn strain, damage too early); "
+            "use mesh.element = 'reduced' (see docs/convergence.md)")
 
 
 def load_scene(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Scene:

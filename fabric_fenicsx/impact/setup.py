@@ -1,13 +1,14 @@
 """From a scene to the model's parts: fabric, mesh, weak-form terms, projectile and contact."""
 from __future__ import annotations
 
-from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, load_mesh, uniform_square)
+from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, aligned_square, load_mesh,
+                                     uniform_square)
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
-from fabric_fenicsx.fem.terms import IsotropicShear, MembraneTerm
+from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear, MembraneTerm
 from fabric_fenicsx.impact.scene import Scene, load_fabric
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
 
-__all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile"]
+__all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile", "quadrature_degree"]
 
 EDGE_TAGS = {"left": LEFT, "right": RIGHT, "bottom": BOTTOM, "top": TOP}
 """Scene edge names -> facet tags of the fabric meshes."""
@@ -22,22 +23,35 @@ def build_fabric(scene: Scene) -> Fabric:
 
 
 def build_mesh(scene: Scene, comm):
-    """(mesh, facet tags) of the scene: n x n squares or the graded gmsh mesh fine at the
-    impact point."""
+    """(mesh, facet tags) of the scene: n x n squares, the graded gmsh mesh fine at the
+    impact point, or the graded grid along x and y with the same sizes (``aligned``)."""
     ms = scene.mesh
     if ms.kind == "uniform":
         msh, _, facet_tags = uniform_square(ms.n, ms.side, comm)
+        return msh, facet_tags
+    spec = MeshSpec(side=ms.side, h_centre=ms.h_centre, h_edge=ms.h_edge,
+                    refine_radius=ms.refine_radius, centre=(scene.projectile.x, scene.projectile.y),
+                    grading=ms.grading)
+    if ms.kind == "aligned":
+        msh, _, facet_tags = aligned_square(spec, comm)
     else:
-        spec = MeshSpec(side=ms.side, h_centre=ms.h_centre, h_edge=ms.h_edge,
-                        refine_radius=ms.refine_radius, centre=(scene.projectile.x, scene.projectile.y),
-                        grading=ms.grading)
         msh, _, facet_tags = load_mesh(spec, comm)
     return msh, facet_tags
 
 
-def build_terms(scene: Scene) -> list[MembraneTerm]:
-    """The weak-form terms the scene switches on besides the yarns' (``[membrane]``)."""
+def quadrature_degree(scene: Scene) -> int:
+    """Quadrature degree of the yarn stresses: ``mesh.quadrature_degree`` for the full element,
+    1 (one point per cell) for the reduced one."""
+    return 1 if scene.mesh.element == "reduced" else scene.mesh.quadrature_degree
+
+
+def build_terms(scene: Scene, straight_modulus: float) -> list[MembraneTerm]:
+    """The weak-form terms the scene switches on besides the yarns' (``[membrane]``): the
+    hourglass control of the reduced element (stiffness ``membrane.hourglass`` x
+    ``straight_modulus``, N/m) and an isotropic shear stiffness."""
     terms: list[MembraneTerm] = []
+    if scene.mesh.element == "reduced":
+        terms.append(HourglassControl(scene.membrane.hourglass, straight_modulus))
     if scene.membrane.shear_modulus > 0:
         terms.append(IsotropicShear(scene.membrane.shear_modulus))
     return terms

@@ -29,8 +29,10 @@ from fabric_fenicsx.impact.chatter import chatter_statistics
 from fabric_fenicsx.impact.ledger import EnergyLedger, reduce_named
 from fabric_fenicsx.impact.removal import CellRemoval
 from fabric_fenicsx.impact.scene import Scene
-from fabric_fenicsx.impact.setup import EDGE_TAGS, build_fabric, build_mesh, build_projectile, build_terms
-from fabric_fenicsx.impact.timestep import DtChange, check_due, stable_dt
+from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, build_projectile, build_terms,
+                                         quadrature_degree)
+from fabric_fenicsx.impact.timestep import (DtChange, check_due, damping_coefficient, stable_dt,
+                                            unit_cell_frequency)
 from fabric_fenicsx.material.unitcell import UnitCellError
 from fabric_fenicsx.studies.provenance import code_fingerprint
 from fabric_fenicsx.surrogate.table import SurrogateError
@@ -41,9 +43,11 @@ HISTORY_COLUMNS = (
     "time", "projectile_z", "projectile_velocity", "contact_force", "fabric_kinetic",
     "projectile_kinetic", "internal_work", "stored_energy", "damage_dissipation", "erosion_energy",
     "viscous_dissipation", "penalty_energy", "contact_dissipation", "energy_error",
-    "central_deflection", "dt", "n_contact", "deleted_cells", "eroded_cells")
+    "central_deflection", "dt", "n_contact", "deleted_cells", "eroded_cells", "membrane_terms_energy")
 """history.csv: time (s); projectile face height (m) and velocity (m/s, > 0 into the fabric);
-contact force on the projectile (N, > 0 resisting); energies (J); energy_error (relative);
+contact force on the projectile (N, > 0 resisting); energies (J; membrane_terms_energy: the
+energy stored in the weak-form terms besides the yarns', hourglass control and shear, part of
+stored_energy); energy_error (relative);
 central deflection (m, > 0 along the impact); dt (s); contact nodes; removed cell counts."""
 
 _BLOW_UP_ENERGY = 1.2   # kinetic energy above this multiple of KE_0 = numerical trouble
@@ -97,29 +101,33 @@ class ImpactSimulation:
         self.out_dir = Path(out_dir)
         sc = scene
 
-        # -- mesh, membrane and its weak-form terms
+        # -- mesh, fabric, membrane and its weak-form terms
         self.msh, facet_tags = build_mesh(sc, comm)
+        self.fabric = build_fabric(sc)
+        self.rho_A = self.fabric.areal_density
+        k_straight = straight_yarn_modulus(self.fabric)
         self.membrane = m = Membrane(self.msh, angle=math.radians(sc.material.angle),
-                                     quadrature_degree=sc.mesh.quadrature_degree)
-        for term in (*build_terms(sc), *terms):
+                                     quadrature_degree=quadrature_degree(sc))
+        for term in (*build_terms(sc, k_straight), *terms):
             m.add_term(term)
         self.n_cells_global = comm.allreduce(m.n_cells, op=MPI.SUM)
         self.npc = m.n_points_per_cell
 
-        # -- material at the quadrature points
-        self.fabric = build_fabric(sc)
-        self.rho_A = self.fabric.areal_density
+        # -- material at the quadrature points, its damping
         workers = 1 if comm.size > 1 else None
         cache = sc.material.surrogate_cache or None
         self.surrogate = Surrogate(self.fabric, cache_dir=cache, workers=workers,
                                    progress=verbose and self.rank0)
         self.L_min = min_cell_size(self.msh, "area_over_diagonal")
-        k_straight = straight_yarn_modulus(self.fabric)
         self.omega_straight = 2.0 * math.sqrt(k_straight / self.rho_A) / self.L_min
         self.xi = sc.run.damping
-        beta = 2.0 * self.xi / self.omega_straight
+        self.omega_cell = unit_cell_frequency(self.fabric, k_straight)
+        beta = damping_coefficient(self.xi, self.omega_cell)
         self.material = YarnStress(self.surrogate, m.quadrature_weights_detJ, sc.material.damage, beta,
                                    straight_modulus=k_straight)
+        for term in m.terms:
+            if hasattr(term, "follow"):      # terms that follow the yarns' integrity and tension
+                term.follow(lambda: self.material.state, self.material.tension)
 
         # -- integrator, removal of cells
         clamped = edge_dofs(m.V, facet_tags, [EDGE_TAGS[e] for e in sc.boundary.clamped])
@@ -155,7 +163,8 @@ class ImpactSimulation:
         self.build_seconds = time.perf_counter() - t_build
         terms = ", ".join(t.name for t in m.terms)
         self._say(f"impact: {sc.source}: {self.n_cells_global} cells on {comm.size} rank(s), "
-                  f"L_min = {self.L_min * 1e3:.3f} mm, damping xi = {self.xi:g} (beta = {beta:.3e} s), "
+                  f"L_min = {self.L_min * 1e3:.3f} mm, damping xi = {self.xi:g} at the unit cell (beta = {beta:.3e} s, "
+                  f"xi = {0.5 * beta * self.omega_straight:.3g} at the mesh's highest frequency), "
                   f"dt = {self.dt:.4e} s, v0 = {p.velocity:g} m/s, damage {'on' if sc.material.damage else 'off'}, "
                   f"clamped {sc.boundary.clamped}, angle {sc.material.angle:g} deg, terms: {terms}")
 
@@ -424,7 +433,8 @@ class ImpactSimulation:
                 "penalty_energy": b.penalty_energy,
                 "contact_dissipation": -W_contact - b.penalty_energy, "energy_error": b.error_now,
                 "central_deflection": -b.central_uz, "dt": dt, "n_contact": b.n_contact,
-                "deleted_cells": b.deleted, "eroded_cells": b.eroded}
+                "deleted_cells": b.deleted, "eroded_cells": b.eroded,
+                "membrane_terms_energy": sum(self.membrane.term_energies().values())}
 
     def point_fields(self) -> dict[str, np.ndarray]:
         """Point values (owned quadrature points) of the cell-wise output fields."""
@@ -501,12 +511,16 @@ class ImpactSimulation:
                  "surrogate_tiles": tiles}
         chatter = chatter_statistics(force_t, force_f) if self.rank0 else None
         chatter = comm.bcast(chatter, root=0)
+        absorbed = 0.5 * sc.projectile.mass * (v0 ** 2 - v_res ** 2)
         summary = {
             "scene": str(sc.source), "description": sc.description,
             "v0": v0, "residual_velocity": v_res, "perforated": perforated,
-            "absorbed_energy": 0.5 * sc.projectile.mass * (v0 ** 2 - v_res ** 2),
+            "absorbed_energy": absorbed,
             "max_deflection": b.damage_onset_deflection,
             "damage_onset_time": b.damage_onset_time,
+            "damage_onset_deflection": b.damage_onset_deflection,
+            "first_removal_deflection": b.first_removal_deflection,
+            "peak_deflection": b.peak_deflection,
             "energy_error": b.energy_error, "end_reason": end_reason,
             "end_time": cd.time, "wall_time_s": wall, "build_time_s": self.build_seconds,
             "n_cells": self.n_cells_global, "n_steps": n_steps, "dt": dt, "dt_initial": self.dt_initial,
@@ -533,8 +547,12 @@ class ImpactSimulation:
                           "wave_modulus_bounded": comm.allreduce(self.material.modulus_bounded,
                                                                  op=MPI.SUM),
                           "range": self.surrogate.report_range() if self.rank0 else ""},
-            "mesh": {"L_min": self.L_min, "kind": sc.mesh.kind},
-            "damping": {"xi": self.xi, "beta": self.material.beta, "omega_max": self.omega_straight},
+            "mesh": {"L_min": self.L_min, "kind": sc.mesh.kind, "element": sc.mesh.element,
+                     "quadrature_degree": quadrature_degree(sc)},
+            "damping": {"xi": self.xi, "beta": self.material.beta, "omega_cell": self.omega_cell,
+                        "omega_max": self.omega_straight,
+                        "xi_mesh": 0.5 * self.material.beta * self.omega_straight,
+                        "share_of_absorbed": b.viscous / absorbed if absorbed > 0 else 0.0},
             "settings": sc.to_dict(),
             **code_fingerprint(),
         }

@@ -4,13 +4,20 @@ dt = safety L_min / c_max (sqrt(1 + xi^2) - xi), c_max^2 = K_max / rho_A, with K
 largest wave modulus over the live points (the material's plus the weak-form terms') and
 xi = beta omega / 2 the damping ratio of the stiffness-proportional damping at the highest mesh
 frequency omega = 2 c_max / L_min. dt is only ever lowered; see docs/impact_model.md.
+
+The damping coefficient beta is a property of the fabric and the run, not of the mesh:
+beta = 2 xi / omega_cell with omega_cell the highest frequency a membrane of unit-cell-sized
+cells carries (:func:`unit_cell_frequency`), the shortest wave the homogenised membrane
+represents at all. On a mesh coarser than the unit cell its damping ratio at the highest mesh
+frequency is xi L_cell / L_min < xi.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-__all__ = ["DtChange", "stable_dt", "check_due"]
+__all__ = ["DtChange", "stable_dt", "check_due", "unit_cell_length", "unit_cell_frequency",
+           "damping_coefficient"]
 
 
 @dataclass
@@ -30,6 +37,25 @@ def stable_dt(modulus: float, areal_density: float, L_min: float, beta: float, s
     omega = 2.0 * c / L_min
     xi = 0.5 * beta * omega
     return safety * 2.0 / omega * (math.sqrt(1.0 + xi * xi) - xi)
+
+
+def unit_cell_length(fabric) -> float:
+    """Area over diagonal (m) of the unit cell, the 2 w_1 x 2 w_2 rectangle of one crossing
+    (w_i: projected half-length of yarn i): the ``L_min`` a mesh of unit cells would have."""
+    a, b = 2.0 * fabric.warp.w, 2.0 * fabric.fill.w
+    return a * b / math.hypot(a, b)
+
+
+def unit_cell_frequency(fabric, modulus: float) -> float:
+    """omega_cell = 2 c / L_cell (rad/s), c^2 = modulus / rho_A: the highest frequency of a lumped
+    bilinear membrane whose cells are unit cells (:func:`unit_cell_length`)."""
+    return 2.0 * math.sqrt(modulus / fabric.areal_density) / unit_cell_length(fabric)
+
+
+def damping_coefficient(xi: float, omega_ref: float) -> float:
+    """beta = 2 xi / omega_ref (s): stiffness-proportional damping with the fraction ``xi`` of
+    critical damping at ``omega_ref``."""
+    return 2.0 * xi / omega_ref
 
 
 def check_due(step: int, step_touch: int | None, interval: int) -> bool:

@@ -313,9 +313,9 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
           "missing from the cache are solved during a run in worker processes: their wall time is in the "
           "run's wall time, their CPU is not in its CPU time.", "",
           "## Notes", "",
-          "* `run.damping` is a fraction of critical damping at the highest frequency of the mesh, so "
-          "the physical damping changes with the mesh; it is kept at the scene default 0.1 on every "
-          "level (part of what the mesh ladder measures).",
+          "* `run.damping` is a fraction of critical damping at the highest frequency of a membrane of "
+          "unit cells (since issue 13; before, at the highest frequency of the mesh, so that the damping "
+          "coefficient followed the smallest cell): the same coefficient on every level.",
           "* Errors are relative: |q - q_ref| / |q_ref|. The observed order uses the three finest "
           "successful levels; it is trusted for Richardson extrapolation only inside "
           f"[{ORDER_RANGE[0]}, {ORDER_RANGE[1]}].",
