@@ -186,9 +186,17 @@ class Membrane:
                 energies[term.name] = energies.get(term.name, 0.0) + self.comm.allreduce(local, op=MPI.SUM)
         return energies
 
-    def remove_cells(self, cells: np.ndarray) -> None:
-        """Switch the owned cells ``cells`` off for every term (live-cell mask 0)."""
+    def remove_cells(self, cells: np.ndarray, share: bool = True) -> None:
+        """Switch the owned cells ``cells`` off for every term (live-cell mask 0). With
+        ``share`` the mask is sent to the ranks that hold these cells as ghosts at once, which
+        is collective: every rank must call it. A caller on which only some ranks remove cells
+        passes ``share=False`` and calls :meth:`share_live_cells` on every rank afterwards."""
         self.live.x.array[self._live_dofs[np.asarray(cells, dtype=np.int64)]] = 0.0
+        if share:
+            self.share_live_cells()
+
+    def share_live_cells(self) -> None:
+        """The owners' live-cell mask onto the ghost cells (collective)."""
         self.live.x.scatter_forward()
 
     # ---------------------------------------------------------------- point data (numpy)

@@ -54,14 +54,16 @@ class CellRemoval:
         return delete, erode
 
     def remove(self, delete: np.ndarray, erode: np.ndarray) -> None:
-        """Take the cells out of the material and of every weak-form term."""
+        """Take the cells out of the material and of every weak-form term. Local: a rank calls
+        it only when it removes cells; :meth:`update_nodes`, which every rank calls after any
+        rank removed cells, shares the live-cell mask with the other ranks."""
         cells = np.concatenate((delete, erode))
         self.live_cells[cells] = False
         self.deleted_cells[delete] = True
         self.eroded_cells[erode] = True
         points = (cells[:, None] * self.npc + np.arange(self.npc)).ravel()
         self.material.remove(points)
-        self.m.remove_cells(cells)
+        self.m.remove_cells(cells, share=False)
 
     def _exchange_nodes(self, marked: np.ndarray) -> np.ndarray:
         """A node marked on any rank, marked on every rank that holds it (owned or ghost;
@@ -84,6 +86,7 @@ class CellRemoval:
         the projectile) is still simulated, but it neither keeps a perforation from ending
         the run nor counts as a blow-up when it flies away with the projectile."""
         m = self.m
+        m.share_live_cells()
         if self._node_flags is None:
             self._node_flags = fem.Function(m.V)
             self._cell_nodes = m.V.dofmap.list.array.reshape(-1, m.V.dofmap.cell_dofs(0).size)[:m.n_cells]
