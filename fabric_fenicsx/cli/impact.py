@@ -73,8 +73,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from fabric_fenicsx.impact.scene import locking_warning
 
-    if locking_warning(scene) and _rank() == 0:
-        _warning(locking_warning(scene))
+    locking = locking_warning(scene)
+    if locking and _rank() == 0:
+        _warning(locking)
     if args.check:
         if _rank() == 0:
             print(json.dumps({"source": scene.source, **scene.to_dict()}, indent=1))

@@ -195,7 +195,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "full = bilinear quadrilateral, yarn stresses at the Gauss points of "
                        "quadrature_degree; reduced = one point per cell with hourglass control "
                        "(membrane.hourglass), which does not lock when the yarns cross the cell edges "
-                       "(docs/convergence.md)"),
+                       "(docs/mesh_independence.md)"),
         "quadrature_degree": Key(2, integer(1), "quadrature degree of P1, P2 (2 = 2 x 2 Gauss points; "
                                  "element = full only)"),
     },
@@ -362,6 +362,10 @@ def build_scene(raw: dict[str, Any], overrides: list[str] | tuple[str, ...] = ()
             value = given.get(name, copy.deepcopy(key.default))
             data[sec][name] = key.check(f"{sec}.{name}", value)
     _cross_check(data)
+    if data["mesh"]["element"] == "reduced" and "quadrature_degree" in merged.get("mesh", {}):
+        raise SceneError(f"{source}: mesh.quadrature_degree applies to mesh.element = 'full' only; "
+                         "the reduced element has one point per cell (set mesh.element = 'full' to "
+                         "choose the Gauss rule)")
     return Scene(data, source, description)
 
 
@@ -402,7 +406,7 @@ def locking_warning(scene: Scene) -> str:
              else f"a mesh along x and y with the warp at {scene.material.angle:g} degrees")
     return (f"mesh.element = 'full' on {where}: the yarns cross the cell edges and the fully "
             "integrated element locks in intra-ply shear (spurious yarn strain, damage too early); "
-            "use mesh.element = 'reduced' (see docs/convergence.md)")
+            "use mesh.element = 'reduced' (see docs/mesh_independence.md)")
 
 
 def load_scene(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Scene:

@@ -198,10 +198,11 @@ def _settings_text(rec: RunRecord, levels: str, safeties: str) -> str:
             f"{p['mass']} kg, fillet {p['fillet']} m, friction {p['friction']}, standoff {p['standoff']} m, "
             f"contact_damping {p['contact_damping']}, penalty_fraction {p['penalty_fraction']}; mesh kind "
             f"{m['kind']}, side {m['side']} m, h_centre {levels}, h_edge {m['h_edge']} m, refine_radius {m['refine_radius']} m, "
-            f"grading {m['grading']}, quadrature_degree {m['quadrature_degree']}; material angle "
+            f"grading {m['grading']}, element {m.get('element', 'full')}, quadrature_degree "
+            f"{m['quadrature_degree']}; material angle "
             f"{st['material']['angle']} deg, erosion_strain {st['material']['erosion_strain']}; boundary clamped "
             f"{st['boundary']['clamped']}; run t_end {r['t_end']} s, damping {r['damping']} (fraction of "
-            f"critical at the highest mesh frequency), dt_safety {safeties}, dt_check_interval {r['dt_check_interval']}, "
+            f"critical at the unit cell's highest frequency), dt_safety {safeties}, dt_check_interval {r['dt_check_interval']}, "
             f"release_time {r['release_time']} s; output xdmf_interval {st['output']['xdmf_interval']}, "
             f"png {st['output']['png']}, history_interval {st['output']['history_interval']} s")
 

@@ -165,3 +165,6 @@ def test_aligned_meshes_are_checked_like_graded_ones():
         build_scene({"mesh": {"kind": "aligned", "h_centre": 0.01}})
     with pytest.raises(SceneError, match=r"mesh.element = 'M3D4R': must be one of \['full', 'reduced'\]"):
         build_scene({"mesh": {"element": "M3D4R"}})
+    with pytest.raises(SceneError, match=r"mesh.quadrature_degree applies to mesh.element = 'full' only"):
+        build_scene({"mesh": {"quadrature_degree": 4}})
+    assert build_scene({"mesh": {"element": "full", "quadrature_degree": 4}}).mesh.quadrature_degree == 4
