@@ -187,8 +187,9 @@ class YarnStress:
     def tension(self) -> np.ndarray:
         """Yarn tensions P_i / lambda_i (N/m, shape (2, n)) at every owned point after the last
         :meth:`update`, elastic part (zero at removed points and slack yarns): the geometric
-        stiffness of each yarn against a transverse perturbation."""
-        return self.P_el / self.lam
+        stiffness of each yarn against a transverse perturbation (zero where a yarn has no
+        length left: a slack, collapsed yarn carries nothing)."""
+        return np.divide(self.P_el, self.lam, out=np.zeros_like(self.P_el), where=self.lam > 0.0)
 
     def wave_modulus(self, lookahead: float = 0.0) -> float:
         """Largest wave modulus (N/m) over this rank's live points: the largest eigenvalue of
