@@ -15,6 +15,8 @@
 
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -61,3 +63,40 @@ def coarse_surrogate(surrogate_cache):
     from fabric_fenicsx.surrogate.table import Surrogate
 
     return Surrogate(zylon_as("max"), cache_dir=surrogate_cache, **COARSE)
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TINY_TOML = ('description = "tiny"\n[material]\nangle = 90.0\ndamage = false\n'
+             '[mesh]\nkind = "uniform"\nside = 0.08\nn = 16\n'
+             '[projectile]\ndiameter = 0.02\nvelocity = 20.0\nmass = 0.005\n'
+             '[boundary]\nclamped = ["bottom", "top"]\n[run]\nmax_steps = {max_steps}\n'
+             '[output]\nxdmf_interval = {xdmf_interval}\npng = false\nprogress_interval = 0.0\n')
+"""The tiny impact scene (8 cm square, 16 x 16 cells, damage off) as a TOML file's text."""
+
+
+def mpi_env() -> dict:
+    """Environment for subprocesses run with or without ``mpirun``: OpenMPI allowed as root and
+    on more ranks than cores, this checkout first on the Python path."""
+    return dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+                OMPI_MCA_rmaps_base_oversubscribe="1",
+                PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+
+
+@pytest.fixture
+def impact_on_one_and_two_ranks(tmp_path):
+    """``run(max_steps, xdmf_interval)``: the tiny scene through ``fabric-fenicsx impact`` on 1
+    and on 2 ranks; returns the two output folders."""
+    def run(max_steps: int, xdmf_interval: float) -> list[Path]:
+        scene = tmp_path / "tiny.toml"
+        scene.write_text(TINY_TOML.format(max_steps=max_steps, xdmf_interval=xdmf_interval))
+        cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", str(scene), "--quiet"]
+        outs = []
+        for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
+            out = tmp_path / f"np{n}"
+            proc = subprocess.run(prefix + cmd + ["--out", str(out)], env=mpi_env(), cwd=tmp_path,
+                                  capture_output=True, text=True, timeout=600)
+            assert proc.returncode == 0, proc.stderr[-3000:]
+            outs.append(out)
+        return outs
+    return run

@@ -425,13 +425,13 @@ def _bad_inputs(ws: Workspace):
          _fixed(["impact", "--out", out, "--set", "fabric.file=no-such-fabric.toml"], env)),
         ("--out is an existing file", _fixed(["impact", ws.scene, "--out", existing], env)),
         ("--out is an existing file, 2 MPI ranks", _fixed(["impact", ws.scene, "--out", existing], env, 2)),
-        ("--out is a read-only folder", _read_only_out(ws)),
+        ("--out is a read-only folder", _read_only_folder(ws, "out")),
         ("scene path is a folder", _fixed(["impact", ws.base, "--out", out], env)),
         ("scene path is not UTF-8 (Latin-1)", _fixed(["impact", latin1, "--out", out], env)),
         ("surrogate cache: FABRIC_FENICSX_CACHE names a file",
          _fixed(["impact", ws.scene, "--out", ws.path("out-cache-file"), "--quiet"], cli_env(cache_file),
                 out=ws.path("out-cache-file"))),
-        ("surrogate cache: an empty read-only folder", _read_only_cache(ws)),
+        ("surrogate cache: an empty read-only folder", _read_only_folder(ws, "cache")),
         ("static --step 1e-9", _fixed(["static", "--scenario", "uniaxial-strain", "--step", "1e-9",
                                        "--out", ws.path("static")], env)),
         ("table tile: a corrupted (truncated) file", _tile_fault(ws, "corrupt")),
@@ -440,24 +440,17 @@ def _bad_inputs(ws: Workspace):
     return cases
 
 
-def _read_only_out(ws: Workspace):
+def _read_only_folder(ws: Workspace, which: str):
+    """A case run with a read-only folder as the output folder (``which = "out"``) or as the
+    surrogate cache (``"cache"``, output elsewhere); no case where the mount is refused."""
     @contextlib.contextmanager
     def make():
-        folder = ws.path("ro-out")
+        folder = ws.path(f"ro-{which}")
+        out = folder if which == "out" else ws.path("out-ro-cache")
         with read_only_dir(folder) as how:
-            yield Case(None if how is None else ["impact", ws.scene, "--out", folder], cli_env(ws.cache),
-                       note=how or "mount refused")
-    return make
-
-
-def _read_only_cache(ws: Workspace):
-    @contextlib.contextmanager
-    def make():
-        folder = ws.path("ro-cache")
-        with read_only_dir(folder) as how:
-            out = ws.path("out-ro-cache")
-            yield Case(None if how is None else ["impact", ws.scene, "--out", out, "--quiet"],
-                       cli_env(folder), note=how or "mount refused", out=out)
+            args = ["impact", ws.scene, "--out", out] + (["--quiet"] if which == "cache" else [])
+            yield Case(None if how is None else args, cli_env(folder if which == "cache" else ws.cache),
+                       note=how or "mount refused", out=None if which == "out" else out)
     return make
 
 

@@ -9,7 +9,6 @@ with damage off it only needs the surrogate's intact layer near zero strain.
 import csv
 import json
 import math
-import os
 import shutil
 import subprocess
 import sys
@@ -23,6 +22,7 @@ from fabric_fenicsx.fem.yarn_stress import WAVE_MODULUS_MARGIN, YarnStress, stra
 from fabric_fenicsx.impact.chatter import chatter_statistics
 from fabric_fenicsx.impact.simulation import ImpactError, ImpactSimulation, run_impact
 from fabric_fenicsx.impact.scene import build_scene
+from conftest import mpi_env
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -380,7 +380,6 @@ def test_the_reduced_element_books_its_hourglass_energy_and_keeps_the_balance(tm
     at the end), positive and a small part of the absorbed energy, the balance within 1 %, and
     the residual velocity within 2 % of the fully integrated element's (the yarns run along the
     cell edges here, so neither locks)."""
-    out = tmp_path / "r"
     runs = {e: run_impact(tiny(["run.t_end=2e-4", f"mesh.element={e}"]), tmp_path / e, verbose=False)
             for e in ("reduced", "full")}
     r, f = runs["reduced"], runs["full"]
@@ -449,25 +448,9 @@ def test_chatter_statistics():
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
-def test_serial_and_two_ranks_agree(tmp_path):
-    scene = tmp_path / "tiny.toml"
-    scene.write_text(
-        'description = "tiny"\n[material]\nangle = 90.0\ndamage = false\n'
-        '[mesh]\nkind = "uniform"\nside = 0.08\nn = 16\n'
-        '[projectile]\ndiameter = 0.02\nvelocity = 20.0\nmass = 0.005\n'
-        '[boundary]\nclamped = ["bottom", "top"]\n[run]\nmax_steps = 400\n'
-        '[output]\nxdmf_interval = 0.0\npng = false\nprogress_interval = 0.0\n')
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1",
-               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
-    cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", str(scene), "--quiet"]
-    summaries = []
-    for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
-        out = tmp_path / f"np{n}"
-        proc = subprocess.run(prefix + cmd + ["--out", str(out)], env=env, cwd=tmp_path,
-                              capture_output=True, text=True, timeout=600)
-        assert proc.returncode == 0, proc.stderr[-3000:]
-        summaries.append(json.loads((out / "summary.json").read_text()))
+def test_serial_and_two_ranks_agree(impact_on_one_and_two_ranks):
+    summaries = [json.loads((out / "summary.json").read_text())
+                 for out in impact_on_one_and_two_ranks(max_steps=400, xdmf_interval=0.0)]
     s1, s2 = summaries
     assert s2["n_ranks"] == 2 and s1["n_steps"] == s2["n_steps"] == 400
     assert s1["n_cells"] == s2["n_cells"]
@@ -513,9 +496,7 @@ def _serial_and_two_ranks(tmp_path, table, scene):
     script = tmp_path / "run.py"
     script.write_text(f"DIGEST = {DIGEST!r}\n" + _DAMAGE_RUN)
     coarse = dict(resolution=table.h, r_nodes=table.r_nodes, tile=table.tile)
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1",
-               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    env = mpi_env()
     results = []
     for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
         try:

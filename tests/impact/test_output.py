@@ -11,7 +11,6 @@ import json
 import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -175,25 +174,8 @@ def test_a_new_run_removes_the_last_runs_output(tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
-def test_serial_and_two_ranks_write_the_same_fields(tmp_path):
-    scene = tmp_path / "tiny.toml"
-    scene.write_text(
-        'description = "tiny"\n[material]\nangle = 90.0\ndamage = false\n'
-        '[mesh]\nkind = "uniform"\nside = 0.08\nn = 16\n'
-        '[projectile]\ndiameter = 0.02\nvelocity = 20.0\nmass = 0.005\n'
-        '[boundary]\nclamped = ["bottom", "top"]\n[run]\nmax_steps = 200\n'
-        '[output]\nxdmf_interval = 2e-5\npng = false\nprogress_interval = 0.0\n')
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1",
-               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
-    cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", str(scene), "--quiet"]
-    frames = []
-    for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
-        out = tmp_path / f"np{n}"
-        proc = subprocess.run(prefix + cmd + ["--out", str(out)], env=env, cwd=tmp_path,
-                              capture_output=True, text=True, timeout=600)
-        assert proc.returncode == 0, proc.stderr[-3000:]
-        frames.append(read_run(out))
+def test_serial_and_two_ranks_write_the_same_fields(impact_on_one_and_two_ranks):
+    frames = [read_run(out) for out in impact_on_one_and_two_ranks(max_steps=200, xdmf_interval=2e-5)]
     serial, parallel = frames
     np.testing.assert_allclose(parallel.times, serial.times, rtol=1e-12)
     assert len(serial) >= 3
