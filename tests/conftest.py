@@ -10,7 +10,8 @@
   sessions while developing, set ``FABRIC_FENICSX_TEST_CACHE=/some/folder``.
 * ``coarse_surrogate``: one coarse table of the built-in Zylon AS (h = 0.004, 6 r-nodes, tiles
   of 8 nodes) for the whole session, in that cache; the surrogate and impact tests share it
-  instead of each solving it again.
+  instead of each solving it again. ``coarse_tables_in_runs`` makes the impact runs of a test
+  module use that table's settings (and so its tiles) instead of the default table's.
 """
 
 import os
@@ -63,6 +64,23 @@ def coarse_surrogate(surrogate_cache):
     from fabric_fenicsx.surrogate.table import Surrogate
 
     return Surrogate(zylon_as("max"), cache_dir=surrogate_cache, **COARSE)
+
+
+@pytest.fixture(scope="module")
+def coarse_tables_in_runs(coarse_surrogate):
+    """For a module whose impact runs test something other than the table's accuracy: every
+    ``Surrogate`` made in this process while the module runs (the simulation's among them) takes
+    the coarse table's settings, so the runs read the session's coarse tiles instead of solving
+    the default table's (minutes from an empty cache). Yields those settings."""
+    import functools
+
+    import fabric_fenicsx.surrogate.table as table
+
+    settings = dict(resolution=coarse_surrogate.h, r_nodes=coarse_surrogate.r_nodes,
+                    tile=coarse_surrogate.tile)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(table, "Surrogate", functools.partial(table.Surrogate, **settings))
+        yield settings
 
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -3,9 +3,11 @@ parsing and verdicts, and its fast cases run short on the coarse Y90 mesh.
 
 Each run asserts an outcome that could be false: a completed run has finite fields and an
 energy error below 5 %; a stopped run raised ImpactError with a message naming step, time,
-place and cause. The cases use the built-in fabric only (its surrogate tiles near the strains
-reached are solved once and cached); the fabric variants, whose tables take a minute each to
-solve, are checked here through their geometry and run in the study.
+place and cause. The cases use the built-in fabric only, on the session's coarse table
+(conftest's ``coarse_tables_in_runs``: these tests are about the study and the runs, not the
+table's accuracy, and the default table's damaged tiles take minutes to solve from an empty
+cache); the fabric variants, whose tables take a minute each to solve, are checked here through
+their geometry and run in the study.
 """
 
 import math
@@ -21,6 +23,8 @@ from fabric_fenicsx.studies.stability import (BASE_OVERRIDES, CASES, EDGE_Y, ENE
 
 SHORT = tuple(o for o in BASE_OVERRIDES if not o.startswith("run.t_end")) + ("run.t_end=0.00015",)
 """The study's coarse mesh (1039 cells), 0.15 ms: contact and the first stress waves."""
+
+pytestmark = pytest.mark.usefixtures("coarse_tables_in_runs")
 
 
 def by_name(name):
@@ -120,7 +124,7 @@ CONTACT_CASES = ("friction-0", "friction-2", "angle-30", "edge-20mm")
 
 
 @pytest.fixture(scope="module")
-def contact_runs(tmp_path_factory):
+def contact_runs(tmp_path_factory, coarse_tables_in_runs):
     """The four contact cases run short by the study's own `run_case` (outcome record and
     verdict), each with its simulation kept for a look at the fields at the end."""
     from fabric_fenicsx.studies import stability
@@ -187,14 +191,14 @@ def test_contact_cases_complete_with_a_small_energy_error(contact_runs, name):
     assert rec["status"] == "completed" and s["end_reason"] == "time_limit"
     assert rec["assessment"]["verdict"] == "ok" and rec["fragments"]["free_fragments"] == 0
     assert s["residual_velocity"] < 57.3          # the fabric took energy
-    assert s["energy_error"] < 0.001              # measured 4.2e-4 (at the first contact)
+    assert s["energy_error"] < 0.001              # measured 4.9e-4 (at the first contact)
 
 
 def test_friction_holds_the_fabric_under_the_face(contact_runs):
     """Frictionless contact dissipates nothing by friction and lets the fabric slide under the
     flat face as the cone pulls it in; friction 2 dissipates energy, holds the nodes under the
-    face (measured: mean in-plane displacement 3.9e-5 against 7.0e-5 m) and slows the projectile
-    a little more (56.733 against 56.738 m/s at 0.15 ms)."""
+    face (measured: mean in-plane displacement 4.2e-5 against 8.1e-5 m) and slows the projectile
+    a little more (56.733 against 56.740 m/s at 0.15 ms)."""
     run0, run2 = contact_runs["friction-0"], contact_runs["friction-2"]
     e0, e2 = run0.summary["energies"], run2.summary["energies"]
     assert e0["friction_dissipation_estimate"] == 0.0
@@ -207,7 +211,7 @@ def test_friction_holds_the_fabric_under_the_face(contact_runs):
 def test_the_warp_strain_runs_along_the_material_angle(contact_runs, name, angle):
     """The yarns through the impact zone carry the load: the points of large warp strain E1
     form a band through the impact point along the warp, at the scene's material.angle from
-    global X (Y90: 90 degrees; angle-30: 30 degrees; measured 89.8 and 32.4)."""
+    global X (Y90: 90 degrees; angle-30: 30 degrees; measured 89.6 and 34.0)."""
     direction, _ = strained_band(contact_runs[name].sim)
     assert abs((direction - angle + 90.0) % 180.0 - 90.0) < 5.0, direction
 
@@ -228,7 +232,7 @@ def test_an_impact_near_a_clamped_edge_strains_the_short_yarns_to_it(contact_run
 
 
 @pytest.fixture(scope="module")
-def v1000(tmp_path_factory):
+def v1000(tmp_path_factory, coarse_tables_in_runs):
     """The full study case (about 5 s): a plug is punched out at once."""
     return run_case(by_name("v1000"), tmp_path_factory.mktemp("v1000"))
 
@@ -250,17 +254,18 @@ def test_strains_beyond_the_table_are_counted_and_stay_finite(tmp_path):
     assert_sound(rec)
     assert rec["status"] == "completed" and rec["summary"]["points_beyond_table"] > 0
     assert rec["assessment"]["verdict"] == "ok"
-    assert rec["summary"]["energy_error"] < 0.002                    # measured 5.5e-4
+    assert rec["summary"]["energy_error"] < 0.002                    # measured 3.9e-4
 
 
 def test_large_damaged_region_removes_cells_within_the_energy_limit(tmp_path):
-    """docs/stability.md records an energy error of 0.83 % for this case (0.829 % measured on
-    this short run too): the balance must stay within 1 %, not the 5 % guard."""
+    """docs/stability.md records an energy error of 0.83 % for this case (default table; 0.59 %
+    measured on this short run with the coarse table): the balance must stay within 1 %, not the
+    5 % guard."""
     rec = run_case(by_name("large-damage"), tmp_path / "ld",
                    base_overrides=SHORT[:-1] + ("run.t_end=0.0001",))
     assert_sound(rec)
     s = rec["summary"]
-    assert s["eroded_cells"] > 20                                     # measured 31
+    assert s["eroded_cells"] > 20                                     # measured 27
     assert s["energy_error"] < 0.01
 
 
