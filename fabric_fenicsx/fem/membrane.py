@@ -22,7 +22,7 @@ import typing
 import basix
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -156,8 +156,10 @@ class Membrane:
     def weak_form(self):
         """Residual R(u; v) = sum over :attr:`terms` of int live r_term(u; v) dA: the internal
         virtual work of the referential balance of momentum (Eq. 2-4), the yarn stress of
-        Eq. 2-5 first, every term switched off in removed cells by the live-cell mask."""
-        return sum(self.live * term.integrand(self) * term.measure(self) for term in self.terms)
+        Eq. 2-5 first, every term switched off in removed cells by the live-cell mask. The UFL
+        terms only: :meth:`internal_force` adds the forces of the ``per_cell`` ones."""
+        return sum(self.live * term.integrand(self) * term.measure(self) for term in self.terms
+                   if not term.per_cell)
 
     def add_term(self, term: MembraneTerm) -> MembraneTerm:
         """Add a weak-form term (e.g. ``IsotropicShear(G)``); returns it."""
@@ -176,6 +178,10 @@ class Membrane:
         energies = {}
         for term in self.terms:
             term.prepare(self)
+            if term.per_cell:
+                local = term.add_cell_forces(self, np.zeros((self.u.x.array.size // 3, 3)))
+                energies[term.name] = energies.get(term.name, 0.0) + self.comm.allreduce(local, op=MPI.SUM)
+                continue
             if id(term) not in self._energy_forms:
                 density = term.energy_density(self)
                 self._energy_forms[id(term)] = (None if density is None else
@@ -252,12 +258,17 @@ class Membrane:
         if self._form is None or key != self._form_key:
             self._form = [fem.form(part, jit_params=dict(self.jit_params)) for part in self._weak_form_parts()]
             self._form_key = key
-            self._b = fem_petsc.create_vector(self._form[0])
+            self._b = la.create_petsc_vector(self.V.dofmap.index_map, self.V.dofmap.index_map_bs)
         b = self._b
         with b.localForm() as b_local:
             b_local.set(0.0)
         for form in self._form:
             fem_petsc.assemble_vector(b, form)     # adds into b
+        per_cell = [term for term in self.terms if term.per_cell]
+        if per_cell:
+            with b.localForm() as b_local:
+                for term in per_cell:
+                    term.add_cell_forces(self, b_local.array_w.reshape(-1, 3))
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return b.array_r.copy()
 
@@ -267,6 +278,8 @@ class Membrane:
         a degree-1 yarn term plus a degree-2 hourglass term gave the force of neither)."""
         parts: dict = {}
         for term in self.terms:
+            if term.per_cell:
+                continue
             dx = term.measure(self)
             rule = tuple(sorted(dx.metadata().items()))
             parts[rule] = parts.get(rule, 0) + self.live * term.integrand(self) * dx

@@ -15,6 +15,11 @@ removed cell carries no force from any term. A term gives:
   :meth:`MembraneTerm.prepare` (called before every assembly, for terms with coefficients that
   follow the displacement).
 
+A term whose residual is a fixed linear operator per cell may instead set
+:attr:`MembraneTerm.per_cell` and give :meth:`MembraneTerm.add_cell_forces` (compiled or numpy,
+over all owned cells at once, live-cell mask applied by the term): the membrane adds those
+forces to the assembled ones and books the energy it returns (:class:`HourglassControl`).
+
 A new term is one small class; see :class:`IsotropicShear` and demos/demo_weak_form.py.
 """
 from __future__ import annotations
@@ -24,9 +29,10 @@ import math
 import basix
 import numpy as np
 import ufl
+from numba import njit
 from dolfinx import fem
 
-__all__ = ["MembraneTerm", "YarnTerm", "IsotropicShear", "HourglassControl"]
+__all__ = ["MembraneTerm", "YarnTerm", "IsotropicShear", "HourglassControl", "fluctuation_matrices"]
 
 
 class MembraneTerm:
@@ -34,6 +40,9 @@ class MembraneTerm:
     stiffness or energy of their own, :meth:`wave_modulus` and :meth:`energy_density`."""
 
     name = "term"
+    per_cell = False
+    """True for a term that adds its forces itself (:meth:`add_cell_forces`) instead of being
+    assembled from its UFL :meth:`integrand`."""
 
     def integrand(self, m):
         """r(u; v): the term's integrand of the residual, linear in ``m.v`` (per reference area)."""
@@ -53,6 +62,12 @@ class MembraneTerm:
 
     def prepare(self, m) -> None:
         """Update the term's coefficients from the current displacement (before assembly)."""
+
+    def add_cell_forces(self, m, forces: np.ndarray) -> float:
+        """A :attr:`per_cell` term: add its nodal forces (N) of the owned cells, live-cell mask
+        applied, into ``forces`` (the local nodes with ghosts, shape (n, 3)) at the state of the
+        last :meth:`prepare`; return its stored energy (J) in those cells."""
+        raise NotImplementedError
 
 
 class YarnTerm(MembraneTerm):
@@ -127,13 +142,22 @@ class HourglassControl(MembraneTerm):
     membrane resists a transverse wrinkle only through its tension; the material stiffness there
     stored 95 % of the hourglass energy, a third of the energy a small impact absorbed).
     Until :meth:`follow` connects the term to a material, alpha_i = 1 and T_i = modulus. The
-    average is taken with the 2 x 2 Gauss rule the term is integrated with, so the residual is
-    the exact variation of psi at frozen alpha_i, T_i (constant in the cell, updated before
-    every assembly). Its wave modulus is bounded by k_hg (T_i is at most the straight yarn's
-    tension at failure, far below its modulus).
+    average and psi are taken with the 2 x 2 Gauss rule; alpha_i and T_i are the cell averages
+    of the material's point values, frozen in each assembly (read before every one).
+
+    At frozen alpha_i, T_i psi is quadratic in the cell's nodal displacements u_a:
+    D L_i = sum_a u_a g_ai(x) with g_ai = (Grad N_a - <Grad N_a>) . L_i, so each cell's force
+    is f_a = sum_i s_i sum_b M_i,ab u_b (per component; s_i = k_hg alpha_i in the plane,
+    ratio T_i out of it) with the 4 x 4 matrices M_i,ab = int g_ai g_bi dA fixed by the
+    reference geometry (:func:`fluctuation_matrices`). The term adds its forces that way, one
+    compiled pass over the cells (:attr:`per_cell`), instead of assembling a second UFL form at
+    2 x 2 points every step (benchmarks/bench_hourglass.py prints both costs). Its wave
+    modulus is bounded by k_hg (T_i is at most the straight yarn's tension at failure, far
+    below its modulus).
     """
 
     name = "hourglass"
+    per_cell = True
     DEGREE = 2
 
     def __init__(self, ratio: float, modulus: float):
@@ -142,7 +166,7 @@ class HourglassControl(MembraneTerm):
                 raise ValueError(f"HourglassControl {label} must be a finite number >= 0, got {value!r}")
         self.ratio, self.modulus = float(ratio), float(modulus)
         self.k = self.ratio * self.modulus
-        self._mean = None
+        self._M = None
         self._integrity = None
         self._tension = None
 
@@ -154,71 +178,80 @@ class HourglassControl(MembraneTerm):
         self._integrity, self._tension = state, tension
 
     def _setup(self, m) -> None:
-        cell = m.msh.ufl_cell()
-        if cell.cellname() != "quadrilateral":
-            raise ValueError(f"HourglassControl is for quadrilateral meshes, got {cell.cellname()}")
-        space = fem.FunctionSpace(m.msh, ufl.TensorElement("DG", cell, 0, shape=(3, 2)))
-        self._mean = fem.Function(space, name="mean_grad_u")
-        points, weights = basix.make_quadrature(basix.CellType.quadrilateral, self.DEGREE)
-        self._grad = fem.Expression(ufl.grad(m.u), points)
-        detJ = fem.Expression(abs(ufl.JacobianDeterminant(m.msh)), points).eval(m._cells)
-        w = detJ * weights[np.newaxis, :]
-        self._w = w / w.sum(axis=1, keepdims=True)
-        self._dofs = space.dofmap.list.array[:m.n_cells]
-        scalar = fem.FunctionSpace(m.msh, ("DG", 0))
-        self._alpha = [fem.Function(scalar, name=f"hourglass_alpha{i}") for i in (1, 2)]
-        self._T = [fem.Function(scalar, name=f"hourglass_tension{i}") for i in (1, 2)]
-        for a, T in zip(self._alpha, self._T):
-            a.x.array[:] = 1.0
-            T.x.array[:] = self.modulus
-        self._cell_dofs = scalar.dofmap.list.array[:m.n_cells]
-        wq = m.quadrature_weights_detJ.reshape(m.n_cells, -1)
-        self._wq = wq / wq.sum(axis=1, keepdims=True)
-        self._dx = ufl.dx(domain=m.msh, metadata={"quadrature_degree": self.DEGREE,
-                                                  "quadrature_scheme": "default"})
+        if m.msh.topology.cell_type.name != "quadrilateral":
+            raise ValueError("HourglassControl is for quadrilateral meshes, got "
+                             f"{m.msh.topology.cell_type.name}")
+        from fabric_fenicsx.fem.membrane import yarn_directions
 
-    def _set_cellwise(self, functions, values) -> None:
-        """Cell averages of point values (one row per yarn) into DG0 functions."""
-        for f, v in zip(functions, values):
-            f.x.array[self._cell_dofs] = (self._wq * np.reshape(v, self._wq.shape)).sum(axis=1)
-            f.x.scatter_forward()
+        self._nodes = m.V.dofmap.list.array.reshape(-1, 4)[:m.n_cells]
+        self._M = fluctuation_matrices(m.V.tabulate_dof_coordinates()[:, :2][self._nodes],
+                                       np.array(yarn_directions(m.angle)), self.DEGREE)
+        self._wq = m.quadrature_weights_detJ.reshape(m.n_cells, -1)
+        self._wq = self._wq / self._wq.sum(axis=1, keepdims=True)
+
+    def _cell_means(self, values) -> np.ndarray:
+        """Cell averages, shape (len(values), n_cells), of point values (one row per yarn)."""
+        return np.stack([(self._wq * np.reshape(v, self._wq.shape)).sum(axis=1) for v in values])
 
     def prepare(self, m) -> None:
-        if self._mean is None:
+        if self._M is None:
             self._setup(m)
-        grad = self._grad.eval(m._cells).reshape(m.n_cells, self._w.shape[1], 6)
-        self._mean.x.array.reshape(-1, 6)[self._dofs] = np.einsum("cp,cpk->ck", self._w, grad)
-        self._mean.x.scatter_forward()
-        ones = np.ones(m.n_points)
+        n = m.n_cells
         state = self._integrity() if self._integrity is not None else None
-        self._set_cellwise(self._alpha, (ones, ones) if state is None else (state.alpha1, state.alpha2))
-        self._set_cellwise(self._T, (self.modulus * ones,) * 2 if self._tension is None
-                           else np.maximum(self._tension(), 0.0))
+        alpha = np.ones((2, n)) if state is None else self._cell_means((state.alpha1, state.alpha2))
+        tension = (np.full((2, n), self.modulus) if self._tension is None
+                   else self._cell_means(np.maximum(self._tension(), 0.0)))
+        live = m.live.x.array[m._live_dofs]
+        self._s = np.empty((n, 2, 2))            # s per cell, yarn and (in-plane, out-of-plane)
+        self._s[:, :, 0] = self.k * alpha.T * live[:, None]
+        self._s[:, :, 1] = self.ratio * tension.T * live[:, None]
 
-    def measure(self, m):
-        if self._mean is None:
-            self._setup(m)
-        return self._dx
-
-    def _parts(self, m, w):
-        """[(stiffness, D_p L_i . w_p L_i + D_z . L_i w_z . L_i split)] for both yarns, as UFL:
-        the bilinear form of psi between the fluctuation D and a gradient w."""
-        if self._mean is None:
-            self._setup(m)
-        d = ufl.grad(m.u) - self._mean
-        total = 0
-        for a, T, L in zip(self._alpha, self._T, (m.L1, m.L2)):
-            dL, wL = d * L, w * L
-            total += self.k * a * (dL[0] * wL[0] + dL[1] * wL[1]) + self.ratio * T * dL[2] * wL[2]
-        return total
-
-    def energy_density(self, m):
-        if self._mean is None:
-            self._setup(m)
-        return 0.5 * self._parts(m, ufl.grad(m.u) - self._mean)
-
-    def integrand(self, m):
-        return self._parts(m, ufl.grad(m.v))
+    def add_cell_forces(self, m, forces: np.ndarray) -> float:
+        return _add_hourglass_forces(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3), forces)
 
     def wave_modulus(self) -> float:
         return self.k
+
+
+def fluctuation_matrices(X: np.ndarray, directions: np.ndarray, degree: int = 2) -> np.ndarray:
+    """M_i,ab = int_cell g_ai g_bi dA, g_ai = (Grad N_a - <Grad N_a>) . L_i, for bilinear
+    quadrilaterals with reference node coordinates ``X`` (n_cells, 4, 2, in basix's vertex
+    order) and yarn directions ``directions`` (2, 2): shape (n_cells, 2, 4, 4). Integrated and
+    averaged (<.>, area-weighted) with the Gauss rule of ``degree``."""
+    points, weights = basix.make_quadrature(basix.CellType.quadrilateral, degree)
+    element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1,
+                                   basix.LagrangeVariant.equispaced)
+    dN = element.tabulate(1, points)[1:, :, :, 0]                   # (2, q, a): d/dxi_j
+    J = np.einsum("caI,jqa->cqIj", X, dN)                           # dX_I / dxi_j
+    detJ = np.abs(J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0])   # either orientation
+    if not np.all(detJ > 0):
+        raise ValueError("fluctuation_matrices: a degenerate quadrilateral (zero Jacobian at a "
+                         "Gauss point): fix the mesh")
+    grad = np.einsum("jqa,cqjI->cqaI", dN, np.linalg.inv(J))        # Grad N_a at the points
+    W = detJ * weights                                              # (c, q)
+    mean = np.einsum("cq,cqaI->caI", W / W.sum(axis=1, keepdims=True), grad)
+    g = np.einsum("cqaI,iI->cqai", grad - mean[:, None], directions)
+    return np.einsum("cq,cqai,cqbi->ciab", W, g, g)
+
+
+@njit(cache=True, nogil=True)
+def _add_hourglass_forces(M, nodes, stiffness, u, forces):
+    """f_a += sum_i s_i sum_b M_i,ab u_b per cell (s_i = stiffness[c, i, 0] for x, y and
+    stiffness[c, i, 1] for z) into ``forces``; returns 1/2 sum u . f of these cells (J)."""
+    energy = 0.0
+    for c in range(M.shape[0]):
+        for a in range(4):
+            fx = fy = fz = 0.0
+            for b in range(4):
+                in_plane = stiffness[c, 0, 0] * M[c, 0, a, b] + stiffness[c, 1, 0] * M[c, 1, a, b]
+                out_of_plane = stiffness[c, 0, 1] * M[c, 0, a, b] + stiffness[c, 1, 1] * M[c, 1, a, b]
+                nb = nodes[c, b]
+                fx += in_plane * u[nb, 0]
+                fy += in_plane * u[nb, 1]
+                fz += out_of_plane * u[nb, 2]
+            na = nodes[c, a]
+            forces[na, 0] += fx
+            forces[na, 1] += fy
+            forces[na, 2] += fz
+            energy += 0.5 * (fx * u[na, 0] + fy * u[na, 1] + fz * u[na, 2])
+    return energy
