@@ -23,7 +23,7 @@ STAMP := $(VENV)/.fabric_fenicsx-installed
 PIP_FLAGS ?= --progress-bar off
 
 # The demo: Y90 at 57.3 m/s on a coarse mesh (4 mm at the impact point instead of the scene's
-# 1.41 mm) so that it finishes in a few minutes from a fresh clone (34 s of run with the surrogate
+# 1.41 mm) so that it finishes in a few minutes from a fresh clone (16 s of run with the surrogate
 # cached); docs/mesh_independence.md says what the mesh changes.
 DEMO_CMD ?= $(VENV)/bin/fabric-fenicsx impact demos/scenes/y90.toml --out out/impact-y90 --set projectile.velocity=57.3 --set mesh.h_centre=0.004
 PYTEST_ARGS ?= -q tests
