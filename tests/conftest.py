@@ -19,6 +19,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -45,9 +46,76 @@ def pytest_configure(config):
 
 
 def pytest_unconfigure(config):
+    demos = getattr(config, "_fabric_fenicsx_demos", None)
+    if demos is not None:
+        demos.stop()
     base = getattr(config, "_fabric_fenicsx_base", None)
     if base is not None:
         shutil.rmtree(base, ignore_errors=True)
+
+
+DEMO_TIMEOUT = 900
+"""Seconds a demo may take, counted from its start."""
+
+
+class BackgroundDemos:
+    """The selected ``demos/demo_*.py`` scripts, started as soon as the session knows its tests
+    (:func:`pytest_collection_finish`), at a lower CPU priority (nice 10), each in its own
+    folder: they are separate processes, and most of the suite keeps one of the two cores busy,
+    so they run on the other one while the rest of the suite runs. ``result(demo)`` waits for
+    one and returns (return code, stdout, stderr, its output folder)."""
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.running: dict[str, tuple] = {}
+
+    def start(self, demo: Path) -> None:
+        run = self.folder / demo.stem
+        out = run / "out"
+        run.mkdir(parents=True)
+        env = dict(os.environ, MPLBACKEND="Agg", PYVISTA_OFF_SCREEN="true",
+                   PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+        stdout, stderr = open(run / "stdout.txt", "w"), open(run / "stderr.txt", "w")
+        # cwd = its own folder: a demo must not depend on being started from the demos folder
+        proc = subprocess.Popen([sys.executable, str(demo), str(out)], cwd=run, env=env,
+                                stdout=stdout, stderr=stderr, preexec_fn=lambda: os.nice(10))
+        self.running[demo.stem] = (proc, out, stdout, stderr, time.monotonic())
+
+    def result(self, demo: Path):
+        if demo.stem not in self.running:
+            self.start(demo)
+        proc, out, stdout, stderr, started = self.running[demo.stem]
+        try:
+            proc.wait(timeout=max(1.0, DEMO_TIMEOUT - (time.monotonic() - started)))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            pytest.fail(f"{demo.name} did not end within {DEMO_TIMEOUT} s")
+        finally:
+            stdout.close()
+            stderr.close()
+        return (proc.returncode, Path(stdout.name).read_text(), Path(stderr.name).read_text(), out)
+
+    def stop(self) -> None:
+        for proc, *_ in self.running.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+
+
+def pytest_collection_finish(session):
+    """Start every demo whose test was selected (see :class:`BackgroundDemos`)."""
+    config = session.config
+    demos = BackgroundDemos(config._fabric_fenicsx_base / "demos")
+    config._fabric_fenicsx_demos = demos
+    for item in session.items:
+        if getattr(item, "originalname", None) == "test_demo_runs":
+            demos.start(item.callspec.params["demo"])
+
+
+@pytest.fixture(scope="session")
+def background_demos(request):
+    """The session's :class:`BackgroundDemos`."""
+    return request.config._fabric_fenicsx_demos
 
 
 @pytest.fixture(scope="session")
@@ -101,20 +169,19 @@ def mpi_env() -> dict:
                 PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
 
 
-@pytest.fixture
-def impact_on_one_and_two_ranks(tmp_path):
-    """``run(max_steps, xdmf_interval)``: the tiny scene through ``fabric-fenicsx impact`` on 1
-    and on 2 ranks; returns the two output folders."""
-    def run(max_steps: int, xdmf_interval: float) -> list[Path]:
-        scene = tmp_path / "tiny.toml"
-        scene.write_text(TINY_TOML.format(max_steps=max_steps, xdmf_interval=xdmf_interval))
-        cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", str(scene), "--quiet"]
-        outs = []
-        for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
-            out = tmp_path / f"np{n}"
-            proc = subprocess.run(prefix + cmd + ["--out", str(out)], env=mpi_env(), cwd=tmp_path,
-                                  capture_output=True, text=True, timeout=600)
-            assert proc.returncode == 0, proc.stderr[-3000:]
-            outs.append(out)
-        return outs
-    return run
+@pytest.fixture(scope="session")
+def impact_on_one_and_two_ranks(tmp_path_factory):
+    """The tiny scene (400 steps, XDMF every 20 us) through ``fabric-fenicsx impact`` on 1 and
+    on 2 ranks, run once per session: the two output folders."""
+    folder = tmp_path_factory.mktemp("tiny_ranks")
+    scene = folder / "tiny.toml"
+    scene.write_text(TINY_TOML.format(max_steps=400, xdmf_interval=2e-5))
+    cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", str(scene), "--quiet"]
+    outs = []
+    for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
+        out = folder / f"np{n}"
+        proc = subprocess.run(prefix + cmd + ["--out", str(out)], env=mpi_env(), cwd=folder,
+                              capture_output=True, text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        outs.append(out)
+    return outs

@@ -1,14 +1,11 @@
 """Every ``demos/demo_*.py`` runs to completion as a script, serially, from any directory.
 
-Each demo gets an output directory under pytest's tmp_path as argv[1] and must write
-something there. A demo that is meant for ``mpirun`` must still run serially; none is skipped.
-What a demo computes is then checked against expectations found independently of the code
+Each demo gets an output directory as argv[1] and must write something there; the demos are
+started in the background when the session begins (tests/conftest.py, BackgroundDemos). A
+demo that is meant for ``mpirun`` must still run serially; none is skipped. What a demo computes is then checked against expectations found independently of the code
 under test (CHECKS: the thesis's numbers, closed forms, a stored converged run, balances).
 """
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -22,20 +19,16 @@ def test_there_are_demos():
 
 
 @pytest.mark.parametrize("demo", DEMOS, ids=[d.stem for d in DEMOS])
-def test_demo_runs(demo, tmp_path):
-    out = tmp_path / "out"
-    env = dict(os.environ, MPLBACKEND="Agg", PYVISTA_OFF_SCREEN="true",
-               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
-    # cwd = tmp_path: a demo must not depend on being started from its own folder.
-    proc = subprocess.run([sys.executable, str(demo), str(out)], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, (
-        f"{demo.name} exited with {proc.returncode}\n--- stdout\n{proc.stdout[-3000:]}"
-        f"\n--- stderr\n{proc.stderr[-3000:]}")
+def test_demo_runs(demo, background_demos):
+    """The demo was started when the session began (tests/conftest.py, BackgroundDemos), in a
+    folder of its own, with an output directory as argv[1]."""
+    returncode, stdout, stderr, out = background_demos.result(demo)
+    assert returncode == 0, (
+        f"{demo.name} exited with {returncode}\n--- stdout\n{stdout[-3000:]}\n--- stderr\n{stderr[-3000:]}")
     written = [p for p in out.rglob("*") if p.is_file()] if out.exists() else []
     assert written, f"{demo.name} wrote nothing into its output directory {out}"
     assert demo.stem in CHECKS, f"{demo.name} has no check of what it computes in CHECKS"
-    CHECKS[demo.stem](out, proc.stdout)
+    CHECKS[demo.stem](out, stdout)
 
 
 def _csv(path):
