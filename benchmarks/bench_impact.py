@@ -58,7 +58,7 @@ def bench(scene):
     print(f"impact benchmark: {scene.source} at {s['v0']:g} m/s, {s['n_cells']} cells, "
           f"{s['n_ranks']} rank(s), {s['n_steps']} steps, end: {s['end_reason']} at "
           f"{s['end_time'] * 1e6:.1f} us")
-    print(f"  time per step (ms):")
+    print("  time per step (ms):")
     labels = {"strain": "strain evaluation (E1, E2 at the Gauss points)",
               "constitutive": "constitutive update (surrogate, damage, damping)",
               "assembly": "assembly of the internal force",

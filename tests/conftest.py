@@ -12,6 +12,8 @@
   of 8 nodes) for the whole session, in that cache; the surrogate and impact tests share it
   instead of each solving it again. ``coarse_tables_in_runs`` makes the impact runs of a test
   module use that table's settings (and so its tiles) instead of the default table's.
+* The demos whose tests are selected start in the background, at a lower priority, as soon as
+  the session knows its tests (:class:`BackgroundDemos`); ``test_demo_runs`` waits for them.
 """
 
 import os
@@ -73,8 +75,7 @@ class BackgroundDemos:
         run = self.folder / demo.stem
         out = run / "out"
         run.mkdir(parents=True)
-        env = dict(os.environ, MPLBACKEND="Agg", PYVISTA_OFF_SCREEN="true",
-                   PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+        env = dict(mpi_env(), MPLBACKEND="Agg", PYVISTA_OFF_SCREEN="true")
         stdout, stderr = open(run / "stdout.txt", "w"), open(run / "stderr.txt", "w")
         # cwd = its own folder: a demo must not depend on being started from the demos folder
         proc = subprocess.Popen([sys.executable, str(demo), str(out)], cwd=run, env=env,

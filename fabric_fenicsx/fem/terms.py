@@ -30,7 +30,6 @@ import basix
 import numpy as np
 import ufl
 from numba import njit
-from dolfinx import fem
 
 __all__ = ["MembraneTerm", "YarnTerm", "IsotropicShear", "HourglassControl", "fluctuation_matrices"]
 
@@ -151,7 +150,7 @@ class HourglassControl(MembraneTerm):
     ratio T_i out of it) with the 4 x 4 matrices M_i,ab = int g_ai g_bi dA fixed by the
     reference geometry (:func:`fluctuation_matrices`). The term adds its forces that way, one
     compiled pass over the cells (:attr:`per_cell`), instead of assembling a second UFL form at
-    2 x 2 points every step (benchmarks/bench_hourglass.py prints both costs). Its wave
+    2 x 2 points every step (benchmarks/bench_hourglass.py prints its cost). Its wave
     modulus is bounded by k_hg (T_i is at most the straight yarn's tension at failure, far
     below its modulus).
     """

@@ -114,7 +114,7 @@ def _write(out: Path, rows: list[dict], n_states: int, seed: int) -> None:
         w.writeheader()
         w.writerows(rows)
     (out / "surrogate_report.json").write_text(json.dumps(rows, indent=2))
-    lines = [f"# Surrogate accuracy against direct unit-cell solves",
+    lines = ["# Surrogate accuracy against direct unit-cell solves",
              "",
              f"{n_states} random states (seed {seed}): E1 in {STATE_RANGES['E1']}, E2 in {STATE_RANGES['E2']}, "
              f"alpha1, alpha2 in {STATE_RANGES['alpha']}. Errors of P1 and P2 (N/m); the issue's criterion is "

@@ -12,7 +12,7 @@ from fabric_fenicsx.material.fabric import zylon_as
 from fabric_fenicsx.surrogate.table import Surrogate
 from fabric_fenicsx.material.unitcell import UnitCell
 
-from test_membrane import A, boundary_mask, homogeneous, square
+from test_membrane import boundary_mask, homogeneous, square
 
 PEAK = 148e3           # N/m, peak of the uniaxial-strain stress (thesis Fig. 3-1)
 TOLERANCE = 0.005      # the surrogate's acceptance: 0.5 % of the peak

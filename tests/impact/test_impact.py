@@ -112,7 +112,7 @@ def test_no_contact_search_before_the_projectile_can_reach(tmp_path):
 
 def test_deleted_cell_carries_no_force(tmp_path):
     sim = ImpactSimulation(tiny(["material.damage=true"]), tmp_path / "out", verbose=False)
-    m, mat, cd = sim.membrane, sim.material, sim.cd
+    m, mat = sim.membrane, sim.material
     # a uniform 1 % stretch of both yarns: every cell stressed alike
     m.set_displacement(m.interpolate_owned(lambda x: np.vstack([0.01 * x[0], 0.01 * x[1], 0 * x[0]])))
     cells = m.V.dofmap.list.array.reshape(-1, 4)[:m.n_cells]

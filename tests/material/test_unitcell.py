@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fabric_fenicsx.material.fabric import Fabric, Yarn, zylon_as
-from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell, UnitCellError
+from fabric_fenicsx.material.unitcell import UnitCell, UnitCellError
 
 FABRIC = zylon_as("max")
 
