@@ -142,6 +142,7 @@ class Membrane:
         self.terms: list[MembraneTerm] = [YarnTerm()]
         self._form = None
         self._form_key = None
+        self._per_cell_terms: list[MembraneTerm] = []
         self._energy_forms: dict[int, object] = {}
         self._b = None
         self._h_min = None
@@ -250,24 +251,25 @@ class Membrane:
 
     # ---------------------------------------------------------------- dof data (numpy)
     def internal_force(self) -> np.ndarray:
-        """Owned part of f_int = assemble(weak_form()) (N) for the current u, P1, P2; ghost
-        contributions are summed onto their owners (ADD/REVERSE)."""
+        """Owned part of f_int = assemble(weak_form()) plus the ``per_cell`` terms' forces (N)
+        for the current u, P1, P2; ghost contributions are summed onto their owners
+        (ADD/REVERSE)."""
         for term in self.terms:
             term.prepare(self)
         key = tuple(id(t) for t in self.terms)
         if self._form is None or key != self._form_key:
             self._form = [fem.form(part, jit_params=dict(self.jit_params)) for part in self._weak_form_parts()]
             self._form_key = key
+            self._per_cell_terms = [term for term in self.terms if term.per_cell]
             self._b = la.create_petsc_vector(self.V.dofmap.index_map, self.V.dofmap.index_map_bs)
         b = self._b
         with b.localForm() as b_local:
             b_local.set(0.0)
         for form in self._form:
             fem_petsc.assemble_vector(b, form)     # adds into b
-        per_cell = [term for term in self.terms if term.per_cell]
-        if per_cell:
+        if self._per_cell_terms:
             with b.localForm() as b_local:
-                for term in per_cell:
+                for term in self._per_cell_terms:
                     term.add_cell_forces(self, b_local.array_w.reshape(-1, 3))
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return b.array_r.copy()

@@ -31,8 +31,8 @@ from fabric_fenicsx.impact.removal import CellRemoval
 from fabric_fenicsx.impact.scene import Scene
 from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, build_projectile, build_terms,
                                          quadrature_degree)
-from fabric_fenicsx.impact.timestep import (DtChange, check_due, damping_coefficient, stable_dt,
-                                            unit_cell_frequency)
+from fabric_fenicsx.impact.timestep import (DtChange, check_due, damping_coefficient, highest_frequency,
+                                            stable_dt, unit_cell_frequency)
 from fabric_fenicsx.material.unitcell import UnitCellError
 from fabric_fenicsx.studies.provenance import code_fingerprint
 from fabric_fenicsx.surrogate.table import SurrogateError
@@ -119,10 +119,11 @@ class ImpactSimulation:
         self.surrogate = Surrogate(self.fabric, cache_dir=cache, workers=workers,
                                    progress=verbose and self.rank0)
         self.L_min = min_cell_size(self.msh, "area_over_diagonal")
-        self.omega_straight = 2.0 * math.sqrt(k_straight / self.rho_A) / self.L_min
+        self.omega_straight = highest_frequency(k_straight, self.rho_A, self.L_min)
         self.xi = sc.run.damping
         self.omega_cell = unit_cell_frequency(self.fabric, k_straight)
         beta = damping_coefficient(self.xi, self.omega_cell)
+        self.xi_mesh = 0.5 * beta * self.omega_straight   # its damping ratio at this mesh's highest frequency
         self.material = YarnStress(self.surrogate, m.quadrature_weights_detJ, sc.material.damage, beta,
                                    straight_modulus=k_straight)
         for term in m.terms:
@@ -164,7 +165,7 @@ class ImpactSimulation:
         terms = ", ".join(t.name for t in m.terms)
         self._say(f"impact: {sc.source}: {self.n_cells_global} cells on {comm.size} rank(s), "
                   f"L_min = {self.L_min * 1e3:.3f} mm, damping xi = {self.xi:g} at the unit cell (beta = {beta:.3e} s, "
-                  f"xi = {0.5 * beta * self.omega_straight:.3g} at the mesh's highest frequency), "
+                  f"xi = {self.xi_mesh:.3g} at the mesh's highest frequency), "
                   f"dt = {self.dt:.4e} s, v0 = {p.velocity:g} m/s, damage {'on' if sc.material.damage else 'off'}, "
                   f"clamped {sc.boundary.clamped}, angle {sc.material.angle:g} deg, terms: {terms}")
 
@@ -551,7 +552,7 @@ class ImpactSimulation:
                      "quadrature_degree": quadrature_degree(sc)},
             "damping": {"xi": self.xi, "beta": self.material.beta, "omega_cell": self.omega_cell,
                         "omega_max": self.omega_straight,
-                        "xi_mesh": 0.5 * self.material.beta * self.omega_straight,
+                        "xi_mesh": self.xi_mesh,
                         "share_of_absorbed": b.viscous / absorbed if absorbed > 0 else 0.0},
             "settings": sc.to_dict(),
             **code_fingerprint(),

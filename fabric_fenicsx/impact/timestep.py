@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["DtChange", "stable_dt", "check_due", "unit_cell_length", "unit_cell_frequency",
-           "damping_coefficient"]
+__all__ = ["DtChange", "stable_dt", "check_due", "highest_frequency", "unit_cell_length",
+           "unit_cell_frequency", "damping_coefficient"]
 
 
 @dataclass
@@ -33,10 +33,15 @@ class DtChange:
 def stable_dt(modulus: float, areal_density: float, L_min: float, beta: float, safety: float) -> float:
     """safety x the damped Courant limit (s) for the wave modulus ``modulus`` (N/m), areal
     density rho_A (kg/m^2), smallest cell size L_min (m) and damping coefficient beta (s)."""
-    c = math.sqrt(modulus / areal_density)
-    omega = 2.0 * c / L_min
+    omega = highest_frequency(modulus, areal_density, L_min)
     xi = 0.5 * beta * omega
     return safety * 2.0 / omega * (math.sqrt(1.0 + xi * xi) - xi)
+
+
+def highest_frequency(modulus: float, areal_density: float, length: float) -> float:
+    """omega = 2 c / length (rad/s), c^2 = modulus / rho_A: the highest frequency of a lumped
+    bilinear membrane with cells of size ``length`` (area over diagonal, m)."""
+    return 2.0 * math.sqrt(modulus / areal_density) / length
 
 
 def unit_cell_length(fabric) -> float:
@@ -47,9 +52,9 @@ def unit_cell_length(fabric) -> float:
 
 
 def unit_cell_frequency(fabric, modulus: float) -> float:
-    """omega_cell = 2 c / L_cell (rad/s), c^2 = modulus / rho_A: the highest frequency of a lumped
-    bilinear membrane whose cells are unit cells (:func:`unit_cell_length`)."""
-    return 2.0 * math.sqrt(modulus / fabric.areal_density) / unit_cell_length(fabric)
+    """omega_cell (rad/s): :func:`highest_frequency` of a membrane whose cells are unit cells
+    (:func:`unit_cell_length`)."""
+    return highest_frequency(modulus, fabric.areal_density, unit_cell_length(fabric))
 
 
 def damping_coefficient(xi: float, omega_ref: float) -> float:

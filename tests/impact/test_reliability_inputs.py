@@ -20,8 +20,8 @@ from fabric_fenicsx.material.fabric import zylon_as
 from fabric_fenicsx.studies import faults
 from fabric_fenicsx.surrogate import tiles as tiles_module
 from fabric_fenicsx.surrogate.table import Surrogate
+from conftest import COARSE
 
-COARSE = dict(resolution=0.004, r_nodes=6, tile=8, progress=False)
 FABRIC = zylon_as("max")
 
 

@@ -21,6 +21,7 @@ from fabric_fenicsx.material.damage_solver import (BRACKETED, CONVERGED, UNCONVE
 from fabric_fenicsx.material.fabric import zylon_as
 from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell, UnitCellError
 from fabric_fenicsx.surrogate.table import Surrogate
+from conftest import COARSE
 
 MIN = zylon_as("min")
 MAX = zylon_as("max")
@@ -162,7 +163,7 @@ def test_a_yarn_below_alpha_broken_is_broken_in_the_lookup_as_in_the_unit_cell()
     """Before: alpha1 = 1e-300 read the r = 0 node (solved at R_LIMIT) and gave the warp the
     force of alpha1 = 1e-4 (~20 N/m); the unit cell takes the yarn out (P1 = 0). (An instance
     of the coarse table of its own: the session's shared one must not get damaged tiles.)"""
-    sur = Surrogate(MAX, resolution=0.004, r_nodes=6, tile=8, progress=False)
+    sur = Surrogate(MAX, **COARSE)
     cell = UnitCell(MAX, n_elements=sur.n_elements)
     mu_complete = sur.fabric.damage.mu_complete(sur.mu_crit[0])
     for E1, E2 in [(0.02, 0.02), (0.04, 0.02), (0.01, 0.03)]:

@@ -13,10 +13,10 @@ from fabric_fenicsx.material.fibril import BundleDamage, ExponentialDamage
 from fabric_fenicsx.material.fabric import zylon_as
 from fabric_fenicsx.surrogate.table import Surrogate
 from fabric_fenicsx.material.unitcell import UnitCell
+from conftest import COARSE
 
 FABRIC = zylon_as("max")
 P_PEAK = 148e3  # N/m, peak of the uniaxial-strain response (scenario 1)
-COARSE = dict(resolution=0.004, r_nodes=6, tile=8, progress=False)
 
 
 @pytest.fixture(scope="module")
