@@ -1,4 +1,4 @@
-"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence ...``.
+"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence | divergence ...``.
 
 Each subcommand's module is imported only when it runs, so the material-point scenes
 never import DOLFINx.
@@ -18,6 +18,8 @@ SUBCOMMANDS = {
     "impact": ("fabric_fenicsx.cli.impact", "ballistic impact of a fabric ply (thesis chapter 4)"),
     "convergence": ("fabric_fenicsx.cli.convergence",
                     "error against run time of each discretisation knob (writes docs/convergence.md)"),
+    "divergence": ("fabric_fenicsx.cli.divergence",
+                   "twin runs: how fast a scene amplifies a round-off change of the impact velocity"),
 }
 
 

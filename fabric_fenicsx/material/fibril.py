@@ -31,6 +31,7 @@ __all__ = [
     "BundleDamage",
     "damage_law_from_dict",
     "damage_update",
+    "crack_band_alpha",
     "fit_beta",
 ]
 
@@ -329,6 +330,24 @@ def damage_update(alpha_hist, mu_max, law, mu_crit: float) -> np.ndarray:
                          f"[{a_hist.min()!r}, {a_hist.max()!r}]")
     a_law = law.alpha(mu_max, mu_crit)  # validates mu_max (NaN, <= 0) and mu_crit
     return np.minimum(1.0, np.minimum(a_hist, a_law))
+
+
+# --------------------------------------------------------------------------- crack band
+def crack_band_alpha(law, mu, mu_crit: float, scale) -> np.ndarray:
+    """alpha of ``law`` with its softening branch shortened by the crack-band ``scale`` s in
+    (0, 1]: alpha(mu_crit + (mu - mu_crit) / s) (Eq. 2-25 / 2-24). Damage starts at the same
+    mu_crit; complete failure comes at mu_crit + s (mu_complete - mu_crit).
+
+    A crack band (Bazant and Oh, Materiaux et Constructions 16 (1983) 155-177) would take
+    s = l / h in a cell of length h > l, so that the softening work per unit length of a tear
+    is that of a band of width l on every mesh. :mod:`fabric_fenicsx.studies.softening`
+    measures why that cannot work for this fabric (docs/mesh_independence.md)."""
+    mu = _stretch_array("mu", mu)
+    mu_crit = _critical_stretch("mu_crit", mu_crit)
+    s = _real_array("crack_band_alpha: scale", scale)
+    if not np.all((s > 0.0) & (s <= 1.0)):
+        raise ValueError(f"crack_band_alpha: scale must lie in (0, 1], got {s!r}")
+    return law.alpha(np.where(mu > mu_crit, mu_crit + (mu - mu_crit) / s, mu), mu_crit)
 
 
 # --------------------------------------------------------------------------- fit of beta

@@ -481,7 +481,7 @@ class Surrogate:
         return P1, P2, mu1, mu2
 
     def update(self, E1, E2, alpha1_hist, alpha2_hist, return_mu: bool = False,
-               tension_only: bool = True, tol: float = 1e-10):
+               tension_only: bool = True, tol: float = 1e-10, crack_band=None):
         """Constitutive update: P1, P2 (N/m) and the new alpha1, alpha2 [, mu1, mu2].
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (Eq. 2-25, appendix A.1) is solved
@@ -497,10 +497,23 @@ class Surrogate:
         counts and the first states); the first point without a root also gives a warning that
         names its state. Raises SurrogateError only for a non-finite table value (a fault of a
         table tile, not of the point).
+
+        crack_band: None (the damage law as it is) or (scale1, scale2), each a scalar or an array
+        shaped like E1, in (0, 1]: per point and yarn the crack-band scale s of the softening
+        branch, alpha_i = alpha(mu_crit + (mu_i - mu_crit) / s)
+        (:func:`fabric_fenicsx.material.fibril.crack_band_alpha`).
         """
         E1, E2, a1h, a2h, shape = self._inputs(E1, E2, alpha1_hist, alpha2_hist,
                                                 ("alpha1_hist", "alpha2_hist"))
-        P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol)
+        band = np.ones((E1.size, 2))
+        if crack_band is not None:
+            for i in range(2):
+                band[:, i] = np.broadcast_to(np.asarray(crack_band[i], float), shape).ravel()
+            if not np.all((band > 0.0) & (band <= 1.0)):
+                bad = band[~((band > 0.0) & (band <= 1.0))]
+                raise ValueError(f"crack_band scales must lie in (0, 1], got {bad.flat[0]!r}")
+        P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol,
+                                                                             band)
         if np.any(status == damage_kernel.NON_FINITE):
             k = int(np.flatnonzero(status == damage_kernel.NON_FINITE)[0])
             raise SurrogateError(
@@ -535,15 +548,16 @@ class Surrogate:
             out += [mu[:, 0].reshape(shape), mu[:, 1].reshape(shape)]
         return tuple(out)
 
-    def _update_points(self, E1, E2, a1, a2, tol):
-        """:func:`damage_kernel.update` of the points, building the tiles it asks for:
-        (P, alpha, residual, status, number of points that iterated)."""
+    def _update_points(self, E1, E2, a1, a2, tol, band):
+        """:func:`damage_kernel.update` of the points (crack-band scales ``band``, (n, 2)),
+        building the tiles it asks for: (P, alpha, residual, status, number of points that
+        iterated)."""
         n = E1.size
         P, alpha = np.empty((n, 2)), np.empty((n, 2))
         residual, status = np.empty((n, 2)), np.empty(n, np.int8)
         iterated, waiting = damage_kernel.update(
             E1, E2, a1, a2, self._table(), self._spec(("P1", "P2")), self._spec(("mu1", "mu2")),
-            self._law, self.mu_crit, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status)
+            self._law, self.mu_crit, band, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status)
         if waiting:
             again = np.flatnonzero((status == damage_kernel.NEEDS_TILES)
                                    | (status == damage_kernel.NEEDS_DAMAGED_TILES))
@@ -552,7 +566,8 @@ class Surrogate:
             growing = again[status[again] == damage_kernel.NEEDS_DAMAGED_TILES]
             cells = self._cells(E1[growing], E2[growing])
             self._require("damaged", cells.i, cells.j)  # every r (and the intact layer)
-            *parts, more = self._update_points(E1[again], E2[again], a1[again], a2[again], tol)
+            *parts, more = self._update_points(E1[again], E2[again], a1[again], a2[again], tol,
+                                               band[again])
             for whole, part in zip((P, alpha, residual, status), parts):
                 whole[again] = part
             iterated += more

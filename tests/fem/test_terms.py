@@ -276,3 +276,33 @@ def test_bad_terms_are_refused():
             IsotropicShear(bad)
     assert IsotropicShear(0).wave_modulus() == 0.0  # zero is allowed (the term switched off)
     assert isinstance(m.add_term(IsotropicShear(1.0)), MembraneTerm) and len(m.terms) == 2
+
+
+def test_the_shear_term_follows_the_integrity_of_the_weaker_yarn():
+    """psi = min(alpha1, alpha2) G dev(E) : dev(E) per cell once the term follows a material:
+    checked by hand for a uniform simple shear u = (g y, 0, 0), dev(E) : dev(E) = g^2 / 2 +
+    g^4 / 8, on cells with alpha (1, 1), (1, 0.25) and (0, 1)."""
+    from fabric_fenicsx.material.contract import DamageState
+
+    n, g = 4, 0.02
+    msh, _, _ = uniform_square(n, SIDE, MPI.COMM_WORLD)
+    m = Membrane(msh)
+    shear = m.add_term(IsotropicShear(G_SHEAR))
+    m.set_displacement(m.interpolate_owned(lambda x: np.vstack([g * x[1], 0 * x[0], 0 * x[0]])))
+    npc, cells = m.n_points_per_cell, m.n_cells
+    a1, a2 = np.ones(cells * npc), np.ones(cells * npc)
+    k = np.arange(cells) % 3                          # cell kinds 0, 1, 2
+    a2[np.repeat(k == 1, npc)] = 0.25
+    a1[np.repeat(k == 2, npc)] = 0.0
+    shear.follow(lambda: DamageState(a1, a2))
+    m.internal_force()                                # builds the forms, then reads the state
+    density = G_SHEAR * (g ** 2 / 2 + g ** 4 / 8)
+    area = (SIDE / n) ** 2
+    weight = MPI.COMM_WORLD.allreduce(float(np.where(k == 0, 1.0, np.where(k == 1, 0.25, 0.0)).sum()),
+                                      op=MPI.SUM)
+    energy = m.term_energies()["isotropic_shear"]
+    assert energy == pytest.approx(weight * area * density, rel=1e-10)
+    unscaled = Membrane(msh)
+    unscaled.add_term(IsotropicShear(G_SHEAR))
+    unscaled.set_displacement(m.u.x.array[:m.n_owned_dofs].copy())
+    assert unscaled.term_energies()["isotropic_shear"] == pytest.approx(n * n * area * density, rel=1e-10)

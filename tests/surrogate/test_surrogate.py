@@ -307,6 +307,31 @@ def test_damage_update_is_a_fixed_point_checked_without_the_damage_kernel(sur):
     assert np.abs(np.minimum(hist, first) - alpha)[grows].max() > 0.05
 
 
+def test_damage_update_with_a_shortened_softening_branch_is_its_fixed_point(sur):
+    """With crack-band scales s_i per point, the update solves alpha_i = min(alpha_i^hist,
+    alpha(mu_crit + (mu_i - mu_crit) / s_i)) (fibril.crack_band_alpha in Python); s = 1 is the
+    law itself; a scale outside (0, 1] is refused."""
+    from fabric_fenicsx.material.fibril import crack_band_alpha
+    E1, E2, hist = _damaging_states(300, 13)
+    scale = np.random.default_rng(5).uniform(0.6, 1.0, (2, E1.size))
+    law = sur.fabric.damage
+    a1, a2 = sur.update(E1, E2, hist[:, 0], hist[:, 1], crack_band=tuple(scale))[2:]
+    mu = sur.lookup(E1, E2, a1, a2, ("mu1", "mu2"))
+    alpha = np.stack([a1, a2], axis=1)
+    target = np.minimum(hist, np.stack([crack_band_alpha(law, mu[:, i], sur.mu_crit[i], scale[i])
+                                        for i in range(2)], axis=1))
+    alive = alpha > 0
+    np.testing.assert_allclose(alpha[alive], target[alive], rtol=0, atol=1e-8)
+    plain = np.stack(sur.update(E1, E2, hist[:, 0], hist[:, 1])[2:], axis=1)
+    # more brittle: more broken yarns (a yarn's integrity alone need not drop: where the
+    # crossing yarn breaks first, its own stretch falls)
+    assert (alpha == 0).sum() > (plain == 0).sum() and np.abs(alpha - plain).max() > 0.1
+    np.testing.assert_array_equal(np.stack(sur.update(E1, E2, hist[:, 0], hist[:, 1],
+                                                      crack_band=(1.0, 1.0))[2:], axis=1), plain)
+    with pytest.raises(ValueError, match=r"crack_band scales must lie in \(0, 1\]"):
+        sur.update(E1, E2, hist[:, 0], hist[:, 1], crack_band=(1.5, 1.0))
+
+
 def test_damage_update_against_the_unit_cell(sur):
     """The surrogate's damage update against the unit cell's own (UnitCell.respond: direct
     solves, no table) at damaging states: integrities within 0.05 and stresses within 3 % of the
@@ -329,3 +354,8 @@ def test_compiled_damage_laws_match_the_fibril_module(law):
     mu = np.concatenate([np.linspace(1.0, 1.07, 701), [mu_crit, law.mu_complete(mu_crit)]])
     compiled = np.array([law_alpha(m, mu_crit, law_arguments(law)) for m in mu])
     np.testing.assert_allclose(compiled, law.alpha(mu, mu_crit), rtol=0, atol=1e-14)
+    from fabric_fenicsx.material.fibril import crack_band_alpha
+    from fabric_fenicsx.surrogate.kernels.damage import band_alpha
+    for s in (1.0, 0.7, 0.3):
+        compiled = np.array([band_alpha(m, mu_crit, s, law_arguments(law)) for m in mu])
+        np.testing.assert_allclose(compiled, crack_band_alpha(law, mu, mu_crit, s), rtol=0, atol=1e-14)

@@ -55,6 +55,15 @@ def law_alpha(mu, mu_crit, law):
 
 
 @njit(cache=True, nogil=True)
+def band_alpha(mu, mu_crit, scale, law):
+    """:func:`law_alpha` with the softening branch stretched by the crack-band ``scale``:
+    alpha(mu_crit + (mu - mu_crit) / scale) (:func:`fibril.crack_band_alpha`)."""
+    if scale != 1.0 and mu > mu_crit:
+        mu = mu_crit + (mu - mu_crit) / scale
+    return law_alpha(mu, mu_crit, law)
+
+
+@njit(cache=True, nogil=True)
 def _at_most(hist, t):
     """min(hist, t), NaN if t is (as numpy.minimum)."""
     return t if (math.isnan(t) or t < hist) else hist
@@ -63,15 +72,15 @@ def _at_most(hist, t):
 @njit(cache=True, nogil=True)
 def _law_target(ctx, a1, a2):
     """min(alpha^hist, alpha(mu(alpha))) of one point at (a1, a2): ctx = (alpha1^hist,
-    alpha2^hist, law, mu_crit, table, spec of (mu1, mu2), and the point's E1, E2, alpha1,
-    alpha2, mu (1, 2) and flag as arrays of one)."""
-    h1, h2, law, mu_crit, table, spec, E1, E2, x1, x2, mu, flag = ctx
+    alpha2^hist, law, mu_crit, table, spec of (mu1, mu2), the point's E1, E2, alpha1,
+    alpha2, mu (1, 2) and flag as arrays of one, and its crack-band scales (2,))."""
+    h1, h2, law, mu_crit, table, spec, E1, E2, x1, x2, mu, flag, scale = ctx
     x1[0], x2[0] = a1, a2
     interp_kernel.lookup(E1, E2, x1, x2, table, spec, mu, flag)
     if flag[0] == 2:
         return math.nan, math.nan  # a tile is missing: the caller builds them first
-    return (_at_most(h1, law_alpha(mu[0, 0], mu_crit[0], law)),
-            _at_most(h2, law_alpha(mu[0, 1], mu_crit[1], law)))
+    return (_at_most(h1, band_alpha(mu[0, 0], mu_crit[0], scale[0], law)),
+            _at_most(h2, band_alpha(mu[0, 1], mu_crit[1], scale[1], law)))
 
 
 @njit(cache=True, nogil=True)
@@ -104,15 +113,16 @@ NaN: a fault of the table, not of the point)."""
 
 
 @njit(cache=True, nogil=True)
-def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, floor, tol, P, alpha, residual,
-           status):
+def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, band, floor, tol, P, alpha,
+           residual, status):
     """The constitutive update of n points: the new alpha (n, 2) from alpha^hist = (a1, a2)
     (Eq. 2-25 / A.12) and P1, P2 there into P (n, 2); per point ``status``: CONVERGED (damage
     unchanged, or its iteration converged), BRACKETED (converged on the iteration's guaranteed
     path), UNCONVERGED (no root within ACCEPT: alpha is the upper end of a bracket narrower than
     tol around a jump of the target; alpha - target in ``residual``), NON_FINITE (a non-finite
     alpha, from a non-finite table stretch), NEEDS_TILES or NEEDS_DAMAGED_TILES (the point is
-    not done). Every done point has 0 <= alpha <= alpha^hist. Returns the numbers of points that iterated and that are not
+    not done). ``band`` (n, 2): each point's crack-band scale of the softening branch per yarn
+    (:func:`band_alpha`; 1 = the law as it is). Every done point has 0 <= alpha <= alpha^hist. Returns the numbers of points that iterated and that are not
     done. Only the points whose cell can reach mu_crit (flag 1 of interp_kernel.lookup) look
     up their stretches. table: :func:`interp_kernel.lookup`'s; spec_P, spec_mu: its specs of
     (P1, P2) and (mu1, mu2)."""
@@ -134,7 +144,7 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, floor, tol, P, 
             continue
         hist[0], hist[1] = a1[n], a2[n]
         point = (a1[n], a2[n], law, mu_crit, table, spec_mu, E1[n:n + 1], E2[n:n + 1], x1, x2, mu,
-                 one)
+                 one, band[n])
         target[0], target[1] = _law_target(point, a1[n], a2[n])
         if not (hist[0] - target[0] > tol or hist[1] - target[1] > tol):
             continue
