@@ -30,6 +30,13 @@ def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
     from fabric_fenicsx.studies import divergence
 
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.size > 1:
+        if MPI.COMM_WORLD.rank == 0:
+            print(f"{PROG}: the twins run serially (their histories are compared step by step); "
+                  "run it without mpirun", file=sys.stderr)
+        return 2
     p = divergence.PERTURBATION if args.perturbation is None else args.perturbation
     if not (0 < abs(p) < 1e-3):
         print(f"{PROG}: --perturbation must be a small relative change, 0 < |p| < 1e-3, got {p!r}",

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["PERTURBATION", "THRESHOLDS", "COLUMNS", "relative_difference", "crossing_times",
-           "growth_rate", "report", "run_twins"]
+           "growth_rate", "report", "format_report", "run_twins"]
 
 PERTURBATION = 1e-12
 """Relative change of the impact velocity of the second twin."""

@@ -56,7 +56,7 @@ def law_alpha(mu, mu_crit, law):
 
 @njit(cache=True, nogil=True)
 def band_alpha(mu, mu_crit, scale, law):
-    """:func:`law_alpha` with the softening branch stretched by the crack-band ``scale``:
+    """:func:`law_alpha` with the softening branch shortened by the crack-band ``scale``:
     alpha(mu_crit + (mu - mu_crit) / scale) (:func:`fibril.crack_band_alpha`)."""
     if scale != 1.0 and mu > mu_crit:
         mu = mu_crit + (mu - mu_crit) / scale
@@ -122,8 +122,8 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, band, floor, to
     tol around a jump of the target; alpha - target in ``residual``), NON_FINITE (a non-finite
     alpha, from a non-finite table stretch), NEEDS_TILES or NEEDS_DAMAGED_TILES (the point is
     not done). ``band`` (n, 2): each point's crack-band scale of the softening branch per yarn
-    (:func:`band_alpha`; 1 = the law as it is). Every done point has 0 <= alpha <= alpha^hist. Returns the numbers of points that iterated and that are not
-    done. Only the points whose cell can reach mu_crit (flag 1 of interp_kernel.lookup) look
+    (:func:`band_alpha`; 1 = the law as it is). Every done point has 0 <= alpha <= alpha^hist.
+    Returns the numbers of points that iterated and that are not done. Only the points whose cell can reach mu_crit (flag 1 of interp_kernel.lookup) look
     up their stretches. table: :func:`interp_kernel.lookup`'s; spec_P, spec_mu: its specs of
     (P1, P2) and (mu1, mu2)."""
     flag = np.empty(E1.size, np.int8)
