@@ -86,6 +86,18 @@ class YarnTerm(MembraneTerm):
                 + m.P2 / m.lambda2 * ufl.dot(m.a2, grad_v * m.L2))
 
 
+def _cell_weights(m) -> np.ndarray:
+    """Each owned cell's quadrature weights normalised to sum 1, shape (n_cells, points)."""
+    w = m.quadrature_weights_detJ.reshape(m.n_cells, -1)
+    return w / w.sum(axis=1, keepdims=True)
+
+
+def _cell_means(wq: np.ndarray, values) -> np.ndarray:
+    """Cell averages, shape (len(values), n_cells), of point values (one row per yarn) with the
+    weights of :func:`_cell_weights`."""
+    return np.stack([(wq * np.reshape(v, wq.shape)).sum(axis=1) for v in values])
+
+
 class _FollowsIntegrity:
     """A term whose stiffness follows the weave's integrity: per cell the factor
     min(alpha1, alpha2) of the cell means of the material's damage (a cell with a broken yarn
@@ -94,6 +106,7 @@ class _FollowsIntegrity:
 
     _integrity = None
     _scale = None
+    _wq = None
 
     def follow(self, state, tension=None) -> None:
         """``state()`` returns the material's DamageState at the owned quadrature points (cell
@@ -114,11 +127,10 @@ class _FollowsIntegrity:
     def prepare(self, m) -> None:
         if self._integrity is None or self._scale is None:
             return
+        if self._wq is None:
+            self._wq = _cell_weights(m)
         state = self._integrity()
-        w = m.quadrature_weights_detJ.reshape(m.n_cells, -1)
-        w = w / w.sum(axis=1, keepdims=True)
-        self._scale.x.array[m._live_dofs] = np.minimum((w * state.alpha1.reshape(w.shape)).sum(axis=1),
-                                                       (w * state.alpha2.reshape(w.shape)).sum(axis=1))
+        self._scale.x.array[m._live_dofs] = _cell_means(self._wq, (state.alpha1, state.alpha2)).min(axis=0)
         self._scale.x.scatter_forward()
 
 
@@ -225,21 +237,16 @@ class HourglassControl(MembraneTerm):
         self._nodes = m.V.dofmap.list.array.reshape(-1, 4)[:m.n_cells]
         self._M = fluctuation_matrices(m.V.tabulate_dof_coordinates()[:, :2][self._nodes],
                                        np.array(yarn_directions(m.angle)), self.DEGREE)
-        self._wq = m.quadrature_weights_detJ.reshape(m.n_cells, -1)
-        self._wq = self._wq / self._wq.sum(axis=1, keepdims=True)
-
-    def _cell_means(self, values) -> np.ndarray:
-        """Cell averages, shape (len(values), n_cells), of point values (one row per yarn)."""
-        return np.stack([(self._wq * np.reshape(v, self._wq.shape)).sum(axis=1) for v in values])
+        self._wq = _cell_weights(m)
 
     def prepare(self, m) -> None:
         if self._M is None:
             self._setup(m)
         n = m.n_cells
         state = self._integrity() if self._integrity is not None else None
-        alpha = np.ones((2, n)) if state is None else self._cell_means((state.alpha1, state.alpha2))
+        alpha = np.ones((2, n)) if state is None else _cell_means(self._wq, (state.alpha1, state.alpha2))
         tension = (np.full((2, n), self.modulus) if self._tension is None
-                   else self._cell_means(np.maximum(self._tension(), 0.0)))
+                   else _cell_means(self._wq, np.maximum(self._tension(), 0.0)))
         live = m.live.x.array[m._live_dofs]
         self._s = np.empty((n, 2, 2))            # s per cell, yarn and (in-plane, out-of-plane)
         self._s[:, :, 0] = self.k * alpha.T * live[:, None]

@@ -1,3 +1,5 @@
+"""Material (b): exact separated branch, contact branch continued across the line (importing
+it replaces YarnStress._intact; patched_branch.py runs the command line with it)."""
 import sys, numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.ndimage import distance_transform_edt

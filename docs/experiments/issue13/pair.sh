@@ -1,9 +1,12 @@
 #!/bin/bash
-# usage: pair.sh NAME [--set ...]: damage off to 0.8 ms, k=0 and k=1, then growth report
+# usage: [RUNNER=...] pair.sh NAME [--set ...]: damage off to 0.8 ms, k=0 and k=1, then growth
+# report. RUNNER (default .venv/bin/fabric-fenicsx) runs the twins with a patched material, e.g.
+# RUNNER=".venv/bin/python /work/ens/patched_branch_relaxed.py" for material (c).
 name=$1; shift
+RUNNER=${RUNNER:-.venv/bin/fabric-fenicsx}
 for k in 0 1; do
 v=$(python3 -c "print(repr(57.3*(1+$k*1e-12)))")
-(cd /work/main && .venv/bin/fabric-fenicsx impact demos/scenes/y90.toml --out /work/ens/d_${name}_k$k --set projectile.velocity=$v --set output.xdmf_interval=0 --set output.png=false --quiet --set material.damage=false --set run.t_end=0.0008 --set mesh.h_centre=0.004 "$@" > /work/ens/d_${name}_k$k.log 2>&1) &
+(cd /work/main && $RUNNER impact demos/scenes/y90.toml --out /work/ens/d_${name}_k$k --set projectile.velocity=$v --set output.xdmf_interval=0 --set output.png=false --quiet --set material.damage=false --set run.t_end=0.0008 --set mesh.h_centre=0.004 "$@" > /work/ens/d_${name}_k$k.log 2>&1) &
 done
 wait
 python3 - $name <<'PY'
