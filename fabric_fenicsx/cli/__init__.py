@@ -1,4 +1,4 @@
-"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence | divergence ...``.
+"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence | divergence | ensemble ...``.
 
 Each subcommand's module is imported only when it runs, so the material-point scenes
 never import DOLFINx.
@@ -20,6 +20,8 @@ SUBCOMMANDS = {
                     "error against run time of each discretisation knob (writes docs/convergence.md)"),
     "divergence": ("fabric_fenicsx.cli.divergence",
                    "twin runs: how fast a scene amplifies a round-off change of the impact velocity"),
+    "ensemble": ("fabric_fenicsx.cli.ensemble",
+                 "a scene run N times with round-off-sized changes: its answer as mean, interval and range"),
 }
 
 

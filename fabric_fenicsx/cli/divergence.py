@@ -13,17 +13,13 @@ import json
 import sys
 from pathlib import Path
 
+from fabric_fenicsx.cli import _perturbed
+
 PROG = "fabric-fenicsx divergence"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", help="scene TOML file (e.g. demos/scenes/y90.toml)")
-    parser.add_argument("--out", default=None, help="output folder (default out/divergence-<scene name>)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                        help="override a scene key of both twins (repeatable), e.g. --set material.damage=false")
-    parser.add_argument("--perturbation", type=float, default=None,
-                        help="relative change of the second twin's impact velocity (default 1e-12)")
-    parser.add_argument("--quiet", action="store_true", help="no progress lines from the runs")
+    _perturbed.add_arguments(parser, "divergence", "both twins")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -38,9 +34,9 @@ def run(args: argparse.Namespace) -> int:
                   "run it without mpirun", file=sys.stderr)
         return 2
     p = divergence.PERTURBATION if args.perturbation is None else args.perturbation
-    if not (0 < abs(p) < 1e-3):
-        print(f"{PROG}: --perturbation must be a small relative change, 0 < |p| < 1e-3, got {p!r}",
-              file=sys.stderr)
+    problem = _perturbed.perturbation_problem(p)
+    if problem:
+        print(f"{PROG}: {problem}", file=sys.stderr)
         return 2
     try:
         scene = load_scene(args.scene, args.overrides)

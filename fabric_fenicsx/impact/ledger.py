@@ -49,6 +49,7 @@ class EnergyLedger:
     t_last_contact: float | None = None
     damage_onset_time: float | None = None
     damage_onset_deflection: float | None = None
+    damage_onset_position: tuple[float, float] | None = None   # reference (x, y) of the first damaged cell
     first_removal_deflection: float | None = None   # central deflection when a cell first goes
     peak_deflection: float = 0.0                     # largest central deflection of the run
 

@@ -280,8 +280,26 @@ class ImpactSimulation:
         if sums["damaged"] and ledger.damage_onset_time is None:
             ledger.damage_onset_time = t_n
             ledger.damage_onset_deflection = -sums["central_uz"]
+            ledger.damage_onset_position = self._onset_position()
+            x, y = ledger.damage_onset_position
             self._say(f"  damage starts at t = {t_n * 1e6:.2f} us, central deflection "
-                      f"{-sums['central_uz'] * 1e3:.2f} mm")
+                      f"{-sums['central_uz'] * 1e3:.2f} mm, in the cell at (x, y) = ({x * 1e3:.1f}, "
+                      f"{y * 1e3:.1f}) mm")
+
+    def _onset_position(self) -> tuple[float, float]:
+        """Reference (x, y) of the centre of the cell whose point is the most damaged at damage
+        onset (smallest min(alpha1, alpha2) over all ranks; collective): where the first yarn
+        starts to break, under the projectile or remote from it."""
+        mat, m = self.material, self.membrane
+        alpha = np.minimum(mat.alpha1, mat.alpha2)
+        mine = (math.inf, 0.0, 0.0)
+        if alpha.size and alpha.min() < 1.0:
+            cell = int(np.argmin(alpha)) // m.n_points_per_cell
+            nodes = m.V.dofmap.list.links(cell)
+            centre = m.V.tabulate_dof_coordinates()[nodes, :2].mean(axis=0)
+            mine = (float(alpha.min()), float(centre[0]), float(centre[1]))
+        _, x, y = min(self.comm.allgather(mine))
+        return x, y
 
     def _projectile(self, loop: _Loop, fz: float, energy) -> tuple[float, float, float]:
         """Energy balance at t_n and the projectile to t_n + dt: (KE_p, v_full, W_contact)."""
@@ -520,6 +538,10 @@ class ImpactSimulation:
             "max_deflection": b.damage_onset_deflection,
             "damage_onset_time": b.damage_onset_time,
             "damage_onset_deflection": b.damage_onset_deflection,
+            "damage_onset_position": (list(b.damage_onset_position) if b.damage_onset_position
+                                      else None),
+            "damage_onset_radius": (float(np.hypot(*(np.array(b.damage_onset_position) - self.axis_xy)))
+                                    if b.damage_onset_position else None),
             "first_removal_deflection": b.first_removal_deflection,
             "peak_deflection": b.peak_deflection,
             "energy_error": b.energy_error, "end_reason": end_reason,

@@ -483,7 +483,8 @@ if sim.comm.rank == 0:
     print(json.dumps(results))
 """
 DIGEST = ("end_reason", "residual_velocity", "energy_error", "n_steps", "deleted_cells", "eroded_cells",
-          "free_nodes", "perforated", "end_time", "n_ranks", "absorbed_energy")
+          "free_nodes", "perforated", "end_time", "n_ranks", "absorbed_energy", "damage_onset_position",
+          "damage_onset_radius")
 DAMAGE_SCENE = {**TINY, "material": {"angle": 90.0, "damage": True},
                 "projectile": {"diameter": 0.02, "velocity": 200.0, "mass": 0.005},
                 "boundary": {"clamped": ["left", "right", "bottom", "top"]}}
@@ -536,6 +537,12 @@ def test_serial_and_two_ranks_agree_with_damage_deletion_erosion_and_a_plug(dama
     assert s2["residual_velocity"] == pytest.approx(s1["residual_velocity"], rel=1e-9)
     assert s2["absorbed_energy"] == pytest.approx(s1["absorbed_energy"], rel=1e-9)
     assert s2["energy_error"] == pytest.approx(s1["energy_error"], rel=1e-6)
+    # the first damaged cell is found over both ranks, and (clamped all round) under the
+    # projectile's edge (radius 10 mm; cells of 5 mm), not remote from it; the scene is
+    # symmetric, so the runs may pick mirror images of one cell (measured: y = +2.5 and -2.5 mm)
+    assert np.abs(s2["damage_onset_position"]) == pytest.approx(np.abs(s1["damage_onset_position"]), abs=1e-12)
+    assert s1["damage_onset_radius"] == pytest.approx(math.hypot(*s1["damage_onset_position"]), rel=1e-12)
+    assert 0.005 < s1["damage_onset_radius"] < 0.015
     assert sum(r["cells"] for r in r2) == r1[0]["cells"]
     assert sum(r["removed_cells"] for r in r2) == r1[0]["removed_cells"] == s1["deleted_cells"] + s1["eroded_cells"]
     assert all(r["free_nodes"] > 0 for r in r2), r2          # the plug spans both ranks

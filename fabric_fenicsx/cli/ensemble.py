@@ -1,0 +1,92 @@
+"""``fabric-fenicsx ensemble SCENE -n N``: a scene's answer as a distribution.
+
+Runs the scene N times, the impact velocity changed by k x ``--perturbation`` of itself (k = 0,
+1, -1, 2, ...), ``--jobs`` members at a time as separate processes, and prints the mean, the
+95 % interval of the mean, the standard deviation and the range of the residual velocity, the
+absorbed energy, the viscous dissipation and its share, the deflection at damage onset, how far
+from the impact point the first yarn breaks, and the removed cells (:mod:`fabric_fenicsx.studies.ensemble`). Writes OUT/ensemble.csv (a row as each
+member ends), OUT/ensemble.json, OUT/ensemble.png and each member's output (OUT/member_<k>).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import sys
+from pathlib import Path
+
+from fabric_fenicsx.cli import _perturbed
+
+PROG = "fabric-fenicsx ensemble"
+COLUMNS = ("k", "velocity", "residual_velocity", "absorbed_energy", "viscous_dissipation", "viscous_share",
+           "damage_onset_deflection", "damage_onset_radius", "removed_cells", "end_reason", "wall_time_s", "error")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    _perturbed.add_arguments(parser, "ensemble", "every member")
+    parser.add_argument("-n", "--members", type=int, default=8, help="number of members (default 8)")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="members run at the same time (default: the cores, at most the members)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from fabric_fenicsx.cli.impact import _size
+    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+    from fabric_fenicsx.studies import ensemble
+
+    if _size() > 1:
+        print(f"{PROG}: the members are processes of their own; run it without mpirun", file=sys.stderr)
+        return 2
+    p = ensemble.PERTURBATION if args.perturbation is None else args.perturbation
+    problems = []
+    if args.members < 2:
+        problems.append(f"--members must be at least 2, got {args.members}")
+    if _perturbed.perturbation_problem(p):
+        problems.append(_perturbed.perturbation_problem(p))
+    if args.jobs is not None and args.jobs < 1:
+        problems.append(f"--jobs must be at least 1, got {args.jobs}")
+    if problems:
+        print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
+        return 2
+    try:
+        scene = load_scene(args.scene, args.overrides)
+        out = Path(args.out or Path("out") / f"ensemble-{scene.name}")
+        check_output_dir(str(out))
+    except InputError as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    jobs = min(args.members, args.jobs or len(os.sched_getaffinity(0)))
+    out.mkdir(parents=True, exist_ok=True)
+    table = out / "ensemble.csv"
+    with open(table, "w", newline="") as f:
+        csv.writer(f).writerow(COLUMNS)
+
+    def on_member(row: dict) -> None:
+        with open(table, "a", newline="") as f:
+            csv.writer(f).writerow([row.get(c, "") for c in COLUMNS])
+        if not args.quiet:
+            if "error" in row:
+                print(f"member k = {row['k']:+d}: failed ({row['error']})", flush=True)
+            else:
+                print(f"member k = {row['k']:+d}: residual {row['residual_velocity']:.4f} m/s, absorbed "
+                      f"{row['absorbed_energy']:.3f} J, {row['removed_cells']} cells removed "
+                      f"({row['end_reason']}, {row['wall_time_s']:.0f} s)", flush=True)
+
+    if not args.quiet:
+        print(f"{PROG}: {args.members} members of {scene.name}, {jobs} at a time, into {out}", flush=True)
+    rows = ensemble.run_members(args.scene, args.overrides, scene.projectile.velocity, args.members, out,
+                                jobs=jobs, perturbation=p, on_member=on_member)
+    ok = [r for r in rows if "error" not in r]
+    rep = ensemble.summarise(ok, p)
+    rep.update(scene=str(args.scene), overrides=list(args.overrides), failed=[r for r in rows if "error" in r])
+    (out / "ensemble.json").write_text(json.dumps(rep, indent=1))
+    if ok:
+        ensemble.plot(rep, out / "ensemble.png", title=f"{scene.name}: {len(ok)} members")
+    print(ensemble.format_summary(rep))
+    print(f"report in {out / 'ensemble.json'}, members in {table}")
+    if rep["failed"]:
+        print(f"{PROG}: {len(rep['failed'])} of {len(rows)} members failed; their logs are in "
+              f"{out}/member_<k>/run.log", file=sys.stderr)
+        return 1
+    return 0

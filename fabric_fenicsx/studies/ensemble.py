@@ -1,0 +1,178 @@
+"""Ensembles: a scene's answer as a distribution over round-off-sized changes (issue 13).
+
+Where a run amplifies a round-off difference (``fabric-fenicsx divergence``), one run's residual
+velocity is one draw: the Y90 scene's tearing is decided by which of many nearly equally
+strained points of the principal yarns breaks first (docs/mesh_independence.md, section 9).
+An ensemble runs the scene N times with the impact velocity changed by k x ``perturbation`` of
+itself (k = 0, 1, -1, 2, -2, ...) and reports each member and the statistics of each quantity:
+mean, standard deviation, the 95 % confidence interval of the mean (Student t) and the range.
+
+The statistics are pure numpy/scipy; :func:`run_members` starts the members as separate
+``fabric-fenicsx impact`` processes, ``jobs`` at a time, and reports each as it finishes, so an
+interrupted ensemble keeps the members it has. The command line is
+``fabric-fenicsx ensemble SCENE``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["PERTURBATION", "QUANTITIES", "offsets", "member_velocity", "statistics", "member_row",
+           "summarise", "format_summary", "run_members", "plot"]
+
+PERTURBATION = 1e-12
+"""Relative step of the impact velocity between members (a round-off-sized change)."""
+
+QUANTITIES = ("residual_velocity", "absorbed_energy", "viscous_dissipation", "viscous_share",
+              "damage_onset_deflection", "damage_onset_radius", "removed_cells")
+"""Per-member quantities the summary gives statistics of (SI units; removed = deleted + eroded;
+the onset radius is the distance of the first damaged cell from the impact point)."""
+
+
+def offsets(n: int) -> list[int]:
+    """The members' multiples k of the perturbation: 0, 1, -1, 2, -2, ... (n of them)."""
+    if n < 1:
+        raise ValueError(f"an ensemble needs at least one member, got n = {n}")
+    return [0] + [s * (i // 2 + 1) for i, s in zip(range(n - 1), (1, -1) * n)]
+
+
+def member_velocity(v0: float, k: int, perturbation: float = PERTURBATION) -> float:
+    """Impact velocity of member k: v0 (1 + k perturbation)."""
+    return v0 * (1.0 + k * perturbation)
+
+
+def statistics(values) -> dict:
+    """n, mean, standard deviation (n - 1), the half-width of the 95 % confidence interval of the
+    mean (Student t with n - 1 degrees of freedom), min, max and the range relative to |mean|, of
+    the finite ``values``; sd and ci95 are None for fewer than two values."""
+    from scipy.stats import t as student_t
+
+    x = np.asarray([v for v in values if v is not None and math.isfinite(v)], float)
+    out = {"n": int(x.size), "mean": None, "sd": None, "ci95": None, "min": None, "max": None,
+           "relative_range": None}
+    if not x.size:
+        return out
+    mean = float(x.mean())
+    out.update(mean=mean, min=float(x.min()), max=float(x.max()))
+    if mean != 0.0:
+        out["relative_range"] = float((x.max() - x.min()) / abs(mean))
+    if x.size > 1:
+        sd = float(x.std(ddof=1))
+        out.update(sd=sd, ci95=float(student_t.ppf(0.975, x.size - 1) * sd / math.sqrt(x.size)))
+    return out
+
+
+def member_row(k: int, velocity: float, summary: dict) -> dict:
+    """One member's row from its run's summary.json."""
+    energies = summary.get("energies", {})
+    absorbed = summary["absorbed_energy"]
+    viscous = energies.get("viscous_dissipation")
+    return {"k": k, "velocity": velocity,
+            "residual_velocity": summary["residual_velocity"],
+            "absorbed_energy": absorbed,
+            "viscous_dissipation": viscous,
+            "viscous_share": viscous / absorbed if viscous is not None and absorbed > 0 else None,
+            "damage_onset_deflection": summary.get("damage_onset_deflection"),
+            "damage_onset_radius": summary.get("damage_onset_radius"),
+            "removed_cells": (summary.get("deleted_cells") or 0) + (summary.get("eroded_cells") or 0),
+            "end_reason": summary.get("end_reason"),
+            "wall_time_s": summary.get("wall_time_s")}
+
+
+def summarise(rows: list[dict], perturbation: float = PERTURBATION) -> dict:
+    """The ensemble's report: its members (rows) and :func:`statistics` of every quantity."""
+    return {"perturbation": perturbation, "members": rows,
+            "statistics": {q: statistics([r.get(q) for r in rows]) for q in QUANTITIES},
+            "end_reasons": {e: sum(r.get("end_reason") == e for r in rows)
+                            for e in sorted({str(r.get("end_reason")) for r in rows})}}
+
+
+def format_summary(rep: dict) -> str:
+    """The report as a table: one line per quantity (mean +- 95 % interval, sd, range)."""
+    units = {"residual_velocity": ("m/s", 1.0), "absorbed_energy": ("J", 1.0),
+             "viscous_dissipation": ("J", 1.0), "viscous_share": ("%", 100.0),
+             "damage_onset_deflection": ("mm", 1e3),
+             "damage_onset_radius": ("mm", 1e3), "removed_cells": ("", 1.0)}
+    n = len(rep["members"])
+    lines = [f"ensemble of {n} members, impact velocity changed by k x {rep['perturbation']:g} of itself",
+             f"{'quantity':<26}{'mean':>10}{'+- 95 %':>10}{'sd':>10}{'min':>10}{'max':>10}"]
+    for q, s in rep["statistics"].items():
+        unit, scale = units.get(q, ("", 1.0))
+        cells = [s[c] for c in ("mean", "ci95", "sd", "min", "max")]
+        text = "".join(f"{c * scale:>10.4g}" if c is not None else f"{'-':>10}" for c in cells)
+        lines.append(f"{q + (f' ({unit})' if unit else ''):<26}{text}")
+    lines.append("end: " + ", ".join(f"{e} {c}" for e, c in rep["end_reasons"].items()))
+    return "\n".join(lines)
+
+
+def _command(scene: str, overrides: list[str], velocity: float, out: Path) -> list[str]:
+    return [sys.executable, "-m", "fabric_fenicsx.cli", "impact", scene, "--out", str(out), "--quiet",
+            *[a for o in overrides for a in ("--set", o)], "--set", f"projectile.velocity={velocity!r}"]
+
+
+def run_members(scene: str, overrides: list[str], v0: float, n: int, out_dir: str | Path,
+                jobs: int = 1, perturbation: float = PERTURBATION, on_member=None) -> list[dict]:
+    """Run the n members of an ensemble of the scene file ``scene`` (with ``overrides``, the
+    impact velocity v0 (1 + k perturbation)) as ``fabric-fenicsx impact`` processes, ``jobs`` at
+    a time, into ``out_dir``/member_<k>; ``on_member(row)`` is called as each one ends (a failed
+    member's row has ``error``: the exit code and the last line of its log). Returns the rows in
+    the order of :func:`offsets`."""
+    out_dir = Path(out_dir)
+    pending = [(k, member_velocity(v0, k, perturbation)) for k in offsets(n)]
+    running: dict = {}
+    rows: dict[int, dict] = {}
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    while pending or running:
+        while pending and len(running) < max(1, jobs):
+            k, v = pending.pop(0)
+            folder = out_dir / f"member_{k}"
+            folder.mkdir(parents=True, exist_ok=True)
+            log = open(folder / "run.log", "w")
+            running[k] = (subprocess.Popen(_command(scene, overrides, v, folder), stdout=log,
+                                           stderr=subprocess.STDOUT, env=env), v, folder, log)
+        time.sleep(0.2)
+        for k in [k for k, (p, *_) in running.items() if p.poll() is not None]:
+            proc, v, folder, log = running.pop(k)
+            log.close()
+            try:
+                row = member_row(k, v, json.loads((folder / "summary.json").read_text()))
+            except (OSError, ValueError, KeyError) as err:
+                tail = (folder / "run.log").read_text(errors="replace").strip().splitlines()[-1:] or [str(err)]
+                row = {"k": k, "velocity": v, "error": f"exit code {proc.returncode}: {tail[0]}"}
+            rows[k] = row
+            if on_member is not None:
+                on_member(row)
+    return [rows[k] for k in offsets(n)]
+
+
+def plot(rep: dict, path: str | Path, title: str = "") -> None:
+    """Residual velocity and absorbed energy of each member against k, with the mean and its
+    95 % interval (PNG)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = [r for r in rep["members"] if "error" not in r]
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+    for ax, q, label in zip(axes, ("residual_velocity", "absorbed_energy"),
+                            ("residual velocity (m/s)", "absorbed energy (J)")):
+        ax.plot([r["k"] for r in ok], [r[q] for r in ok], "o")
+        s = rep["statistics"][q]
+        if s["mean"] is not None:
+            ax.axhline(s["mean"], color="k", lw=1)
+            if s["ci95"] is not None:
+                ax.axhspan(s["mean"] - s["ci95"], s["mean"] + s["ci95"], color="k", alpha=0.12)
+        ax.set_xlabel(f"member k (impact velocity x (1 + k {rep['perturbation']:g}))")
+        ax.set_ylabel(label)
+        ax.ticklabel_format(axis="y", useOffset=False)
+    fig.suptitle(title or "ensemble: mean and 95 % interval of the mean")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
