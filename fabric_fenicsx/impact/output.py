@@ -19,7 +19,8 @@ a run id that ``summary.json`` repeats: a folder never mixes two runs' results.
 * ``history.csv``: one row per history interval, written while the run goes (rank 0).
 * ``summary.json``: the run's summary with its run id (rank 0).
 * ``velocity_history.png`` (projectile velocity and contact force against time) and
-  ``damage_map.png`` (final SDV1, SDV2, SDV3 on the reference fabric, holes left blank),
+  ``damage_map.png`` (final SDV1, SDV2, SDV3 on the reference fabric, holes left blank) and
+  ``damage.npz`` (the same as arrays: reference cell corners ``quads``, ``live``, ``SDV1-3``),
   rendered off-screen with matplotlib and pyvista.
 """
 
@@ -46,7 +47,7 @@ DATA_NAME = "impact.bin"
 H5_NAME = "impact.h5"  # written by earlier versions: removed like the others
 VIEWER_NAME = "paraview_view.py"
 OWNED_FILES = ("run.json", "history.csv", "summary.json", XDMF_NAME, DATA_NAME, H5_NAME, VIEWER_NAME,
-               "velocity_history.png", "damage_map.png")
+               "velocity_history.png", "damage_map.png", "damage.npz")
 """Every file an impact run writes into its folder; a new run removes them first."""
 
 _QUAD_CYCLE = np.array([0, 1, 3, 2])  # DOLFINx tensor-product vertex order -> perimeter order
@@ -399,14 +400,16 @@ class ImpactOutput:
         plt.close(fig)
 
     def _damage_map(self, gathered, summary: dict) -> None:
+        quads = np.concatenate([g[0] for g in gathered])
+        live = np.concatenate([g[1] for g in gathered])
+        values = {k: np.concatenate([g[2][k] for g in gathered]) for k in ("SDV1", "SDV2", "SDV3")}
+        # the same final state as numbers, for pictures of several runs (fabric-fenicsx study)
+        np.savez_compressed(self.out_dir / "damage.npz", quads=quads[:, :, :2], live=live, **values)
         if not os.environ.get("DISPLAY"):
             os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
         import pyvista
 
         pyvista.OFF_SCREEN = True
-        quads = np.concatenate([g[0] for g in gathered])
-        live = np.concatenate([g[1] for g in gathered])
-        values = {k: np.concatenate([g[2][k] for g in gathered]) for k in ("SDV1", "SDV2", "SDV3")}
         n = quads.shape[0]
         points = quads.reshape(-1, 3)
         cells = np.hstack([np.full((n, 1), 4), np.arange(4 * n).reshape(n, 4)]).ravel()

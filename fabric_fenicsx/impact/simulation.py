@@ -290,16 +290,33 @@ class ImpactSimulation:
         """Reference (x, y) of the centre of the cell whose point is the most damaged at damage
         onset (smallest min(alpha1, alpha2) over all ranks; collective): where the first yarn
         starts to break, under the projectile or remote from it."""
-        mat, m = self.material, self.membrane
+        mat = self.material
         alpha = np.minimum(mat.alpha1, mat.alpha2)
         mine = (math.inf, 0.0, 0.0)
         if alpha.size and alpha.min() < 1.0:
-            cell = int(np.argmin(alpha)) // m.n_points_per_cell
-            nodes = m.V.dofmap.list.links(cell)
-            centre = m.V.tabulate_dof_coordinates()[nodes, :2].mean(axis=0)
+            centre = self._cell_centres()[int(np.argmin(alpha)) // self.membrane.n_points_per_cell]
             mine = (float(alpha.min()), float(centre[0]), float(centre[1]))
         _, x, y = min(self.comm.allgather(mine))
         return x, y
+
+    def _cell_centres(self) -> np.ndarray:
+        """Reference (x, y) of the centre of every owned cell, shape (n_cells, 2)."""
+        if getattr(self, "_centres", None) is None:
+            m = self.membrane
+            nodes = m.V.dofmap.list.array.reshape(-1, m.V.dofmap.dof_layout.num_dofs)[:m.n_cells]
+            self._centres = m.V.tabulate_dof_coordinates()[nodes, :2].mean(axis=1)
+        return self._centres
+
+    def _damage_extent(self) -> tuple[int, float | None]:
+        """Cells with a damaged point (removed ones included) over all ranks, and the largest
+        distance of such a cell's centre from the impact point (m; None without damage): how
+        far the damage spread (thesis Sec. 4.4: local against remote damage)."""
+        m, mat = self.membrane, self.material
+        damaged = (np.minimum(mat.alpha1, mat.alpha2) < 1.0).reshape(m.n_cells, -1).any(axis=1)
+        r = np.hypot(*(self._cell_centres()[damaged] - self.axis_xy).T)
+        n = self.comm.allreduce(int(damaged.sum()), op=MPI.SUM)
+        reach = self.comm.allreduce(float(r.max()) if r.size else -1.0, op=MPI.MAX)
+        return n, (reach if n else None)
 
     def _projectile(self, loop: _Loop, fz: float, energy) -> tuple[float, float, float]:
         """Energy balance at t_n and the projectile to t_n + dt: (KE_p, v_full, W_contact)."""
@@ -531,6 +548,7 @@ class ImpactSimulation:
         chatter = chatter_statistics(force_t, force_f) if self.rank0 else None
         chatter = comm.bcast(chatter, root=0)
         absorbed = 0.5 * sc.projectile.mass * (v0 ** 2 - v_res ** 2)
+        damaged_cells, damage_reach = self._damage_extent()
         summary = {
             "scene": str(sc.source), "description": sc.description,
             "v0": v0, "residual_velocity": v_res, "perforated": perforated,
@@ -542,6 +560,7 @@ class ImpactSimulation:
                                       else None),
             "damage_onset_radius": (float(np.hypot(*(np.array(b.damage_onset_position) - self.axis_xy)))
                                     if b.damage_onset_position else None),
+            "damaged_cells": damaged_cells, "damage_extent_radius": damage_reach,
             "first_removal_deflection": b.first_removal_deflection,
             "peak_deflection": b.peak_deflection,
             "energy_error": b.energy_error, "end_reason": end_reason,

@@ -9,17 +9,12 @@ mean, standard deviation, the 95 % confidence interval of the mean (Student t) a
 
 The statistics are pure numpy/scipy; :func:`run_members` starts the members as separate
 ``fabric-fenicsx impact`` processes, ``jobs`` at a time, and reports each as it finishes, so an
-interrupted ensemble keeps the members it has. The command line is
+interrupted ensemble keeps the members it has (and reuses them when it is run again). The command line is
 ``fabric-fenicsx ensemble SCENE``.
 """
 from __future__ import annotations
 
-import json
 import math
-import os
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -112,43 +107,28 @@ def format_summary(rep: dict) -> str:
     return "\n".join(lines)
 
 
-def _command(scene: str, overrides: list[str], velocity: float, out: Path) -> list[str]:
-    return [sys.executable, "-m", "fabric_fenicsx.cli", "impact", scene, "--out", str(out), "--quiet",
-            *[a for o in overrides for a in ("--set", o)], "--set", f"projectile.velocity={velocity!r}"]
-
-
 def run_members(scene: str, overrides: list[str], v0: float, n: int, out_dir: str | Path,
                 jobs: int = 1, perturbation: float = PERTURBATION, on_member=None) -> list[dict]:
     """Run the n members of an ensemble of the scene file ``scene`` (with ``overrides``, the
     impact velocity v0 (1 + k perturbation)) as ``fabric-fenicsx impact`` processes, ``jobs`` at
-    a time, into ``out_dir``/member_<k>; ``on_member(row)`` is called as each one ends (a failed
-    member's row has ``error``: the exit code and the last line of its log). Returns the rows in
-    the order of :func:`offsets`."""
-    out_dir = Path(out_dir)
-    pending = [(k, member_velocity(v0, k, perturbation)) for k in offsets(n)]
-    running: dict = {}
-    rows: dict[int, dict] = {}
-    env = dict(os.environ, OMP_NUM_THREADS="1")
-    while pending or running:
-        while pending and len(running) < max(1, jobs):
-            k, v = pending.pop(0)
-            folder = out_dir / f"member_{k}"
-            folder.mkdir(parents=True, exist_ok=True)
-            log = open(folder / "run.log", "w")
-            running[k] = (subprocess.Popen(_command(scene, overrides, v, folder), stdout=log,
-                                           stderr=subprocess.STDOUT, env=env), v, folder, log)
-        time.sleep(0.2)
-        for k in [k for k, (p, *_) in running.items() if p.poll() is not None]:
-            proc, v, folder, log = running.pop(k)
-            log.close()
-            try:
-                row = member_row(k, v, json.loads((folder / "summary.json").read_text()))
-            except (OSError, ValueError, KeyError) as err:
-                tail = (folder / "run.log").read_text(errors="replace").strip().splitlines()[-1:] or [str(err)]
-                row = {"k": k, "velocity": v, "error": f"exit code {proc.returncode}: {tail[0]}"}
-            rows[k] = row
-            if on_member is not None:
-                on_member(row)
+    a time (:func:`fabric_fenicsx.studies.runpool.run_all`, which reuses a member stored with the
+    same settings), into ``out_dir``/member_<k>; ``on_member(row)`` is called as each one ends (a
+    failed member's row has ``error``: the exit code and the last line of its log). Returns the
+    rows in the order of :func:`offsets`."""
+    from fabric_fenicsx.studies.runpool import Run, run_all
+
+    velocity = {f"member_{k}": (k, member_velocity(v0, k, perturbation)) for k in offsets(n)}
+    runs = [Run(key, scene, (*overrides, f"projectile.velocity={v!r}")) for key, (k, v) in velocity.items()]
+    rows = {}
+
+    def done(run, summary, reused):
+        k, v = velocity[run.key]
+        rows[k] = ({"k": k, "velocity": v, "error": summary["error"]} if "error" in summary
+                   else member_row(k, v, summary))
+        if on_member is not None:
+            on_member(rows[k])
+
+    run_all(runs, out_dir, jobs=jobs, on_done=done)
     return [rows[k] for k in offsets(n)]
 
 

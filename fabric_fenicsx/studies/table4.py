@@ -17,8 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-VELOCITIES = (34.5, 39.78, 57.3, 83.06, 123.69)
-"""Impact velocities of Table 4 (m/s)."""
+from fabric_fenicsx.studies.chapter4 import VELOCITIES, fmt
 
 THESIS = {  # Table 4 of the thesis; None = "bounced back"
     "residual_simulation": (None, 10.0, 32.6, 66.83, 110.0),
@@ -74,13 +73,7 @@ def run_study(scene_path: str, runs: Path, overrides: list[str], verbose: bool =
 
 
 def _fmt(x, digits: int = 2) -> str:
-    if x is None:
-        return "bounced back"
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    if isinstance(x, float):
-        return f"{x:.{digits}f}"
-    return str(x)
+    return fmt(x, digits, none="bounced back")
 
 
 def write_outputs(rows: list[dict], out: Path, scene_path: str, overrides: list[str]) -> None:

@@ -484,7 +484,7 @@ if sim.comm.rank == 0:
 """
 DIGEST = ("end_reason", "residual_velocity", "energy_error", "n_steps", "deleted_cells", "eroded_cells",
           "free_nodes", "perforated", "end_time", "n_ranks", "absorbed_energy", "damage_onset_position",
-          "damage_onset_radius")
+          "damage_onset_radius", "damaged_cells", "damage_extent_radius")
 DAMAGE_SCENE = {**TINY, "material": {"angle": 90.0, "damage": True},
                 "projectile": {"diameter": 0.02, "velocity": 200.0, "mass": 0.005},
                 "boundary": {"clamped": ["left", "right", "bottom", "top"]}}
@@ -543,6 +543,10 @@ def test_serial_and_two_ranks_agree_with_damage_deletion_erosion_and_a_plug(dama
     assert np.abs(s2["damage_onset_position"]) == pytest.approx(np.abs(s1["damage_onset_position"]), abs=1e-12)
     assert s1["damage_onset_radius"] == pytest.approx(math.hypot(*s1["damage_onset_position"]), rel=1e-12)
     assert 0.005 < s1["damage_onset_radius"] < 0.015
+    # how far damage spread: counted over both ranks, at least the removed cells, out from the onset
+    assert s2["damaged_cells"] == s1["damaged_cells"] >= s1["deleted_cells"] + s1["eroded_cells"]
+    assert s2["damage_extent_radius"] == pytest.approx(s1["damage_extent_radius"], rel=1e-12)
+    assert s1["damage_onset_radius"] <= s1["damage_extent_radius"] < 0.04 * math.sqrt(2)
     assert sum(r["cells"] for r in r2) == r1[0]["cells"]
     assert sum(r["removed_cells"] for r in r2) == r1[0]["removed_cells"] == s1["deleted_cells"] + s1["eroded_cells"]
     assert all(r["free_nodes"] > 0 for r in r2), r2          # the plug spans both ranks

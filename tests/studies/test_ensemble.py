@@ -50,12 +50,16 @@ def test_member_row_books_the_viscous_share_and_the_removed_cells():
 
 
 def test_a_failed_member_is_reported_with_its_exit_code_and_the_others_are_kept(tmp_path, monkeypatch):
-    def command(scene, overrides, velocity, out):
+    from fabric_fenicsx.studies import runpool
+
+    def command(run, out):
+        velocity = float(run.overrides[-1].split("=")[1])
         if velocity < 57.3:
             return [sys.executable, "-c", "import sys; print('numerical trouble'); sys.exit(3)"]
         return [sys.executable, "-c", f"import json; open({str(out / 'summary.json')!r}, 'w').write(json.dumps("
                 f"dict(residual_velocity={velocity - 20.0!r}, absorbed_energy=1.0)))"]
-    monkeypatch.setattr(ensemble, "_command", command)
+    monkeypatch.setattr(runpool, "_command", command)
+    monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
     seen = []
     rows = ensemble.run_members("scene.toml", [], 57.3, 3, tmp_path, jobs=2, perturbation=1e-3,
                                 on_member=seen.append)

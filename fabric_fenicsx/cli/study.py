@@ -1,0 +1,215 @@
+"""``fabric-fenicsx study NAME --out DIR [--jobs N] [--set section.key=value ...]``: the thesis's
+chapter 4 as studies (:mod:`fabric_fenicsx.studies.chapter4`).
+
+NAME: table4, table5, table6, friction, fillet, v50 or chapter4 (all of them, and the validation
+report). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time,
+each into OUT/runs/<run>; a run stored with the same settings and model version is reused, so
+an interrupted study resumes. ``--set`` applies to every run. Writes OUT/NAME.md and
+OUT/NAME.json; ``chapter4`` also writes the report ``--doc`` (default docs/validation.md).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+PROG = "fabric-fenicsx study"
+RUN_OUTPUT = ("output.xdmf_interval=0", "output.progress_interval=0")
+"""Every study run writes its history, summary and pictures, but no XDMF (unless --set asks)."""
+V50_BRACKET = (20.0, 60.0)
+"""Where the ballistic-limit bisection starts (m/s); it widens the bracket if it must."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from fabric_fenicsx.studies.chapter4 import STUDIES
+
+    parser.add_argument("name", metavar="NAME", help=f"the study: {', '.join(STUDIES)}")
+    parser.add_argument("--out", default=None, help="output folder (default out/study-NAME)")
+    parser.add_argument("--jobs", type=int, default=None, help="runs at the same time (default: the cores)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override a scene key of every run (repeatable)")
+    parser.add_argument("--members", type=int, default=None,
+                        help="v50: runs per velocity, the impact velocity changed by k x 1e-12 (default: --jobs, "
+                             "at least 2)")
+    parser.add_argument("--tol", type=float, default=0.5, help="v50: width of the final bracket (m/s, default 0.5)")
+    parser.add_argument("--doc", default="docs/validation.md", help="chapter4: the report to write")
+
+
+def _check(args) -> str | None:
+    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+    from fabric_fenicsx.studies import chapter4
+
+    if args.name not in chapter4.STUDIES:
+        return f"unknown study {args.name!r}; the studies are {', '.join(chapter4.STUDIES)}"
+    if args.jobs is not None and args.jobs < 1:
+        return f"--jobs must be at least 1, got {args.jobs}"
+    if args.members is not None and args.members < 1:
+        return f"--members must be at least 1, got {args.members}"
+    if not args.tol > 0:
+        return f"--tol must be positive, got {args.tol}"
+    try:
+        for scene in chapter4.SCENES.values():
+            load_scene(str(chapter4.SCENE_DIR / scene), [*RUN_OUTPUT, *args.overrides])
+        check_output_dir(args.out)
+    except InputError as err:
+        return str(err)
+    return None
+
+
+def run(args: argparse.Namespace) -> int:
+    from fabric_fenicsx.cli.impact import _size
+    from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.runpool import run_all
+
+    if _size() > 1:
+        print(f"{PROG}: the runs are processes of their own (--jobs); run it without mpirun", file=sys.stderr)
+        return 2
+    args.out = args.out or str(Path("out") / f"study-{args.name}")
+    problem = _check(args)
+    if problem:
+        print(f"{PROG}: {problem}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    out = Path(args.out)
+    jobs = args.jobs or len(os.sched_getaffinity(0))
+    overrides = (*RUN_OUTPUT, *args.overrides)
+    runs = chapter4.plan(args.name, overrides)
+    print(f"{PROG} {args.name}: {len(runs)} runs, {jobs} at a time, into {out / 'runs'}", flush=True)
+
+    def progress(run, summary, reused):
+        what = "stored" if reused else "done"
+        if "error" in summary:
+            print(f"  {run.key}: failed ({summary['error']})", flush=True)
+        else:
+            print(f"  {run.key}: {what}, residual {summary['residual_velocity']:.2f} m/s, absorbed "
+                  f"{summary['absorbed_energy']:.2f} J ({summary['end_reason']})", flush=True)
+
+    results = run_all(runs, out / "runs", jobs=jobs, on_done=progress)
+    limits = {}
+    if args.name in ("v50", "chapter4"):
+        limits = _ballistic_limits(overrides, out / "runs", jobs, args.members or max(2, jobs), args.tol, progress)
+    wall = time.perf_counter() - t0
+    report = {"study": args.name, "overrides": list(args.overrides), "wall_time_s": wall,
+              "runs": results, "v50": limits}
+    (out / f"{args.name}.json").write_text(json.dumps(report, indent=1, default=str))
+    text = _report(args.name, results, limits, overrides, wall, out)
+    (out / f"{args.name}.md").write_text(text)
+    if args.name == "chapter4":
+        doc = Path(args.doc)
+        doc.parent.mkdir(parents=True, exist_ok=True)
+        pictures = doc.parent / doc.stem
+        pictures.mkdir(exist_ok=True)
+        for png in (out / "pictures").glob("*.png"):
+            shutil.copy(png, pictures / png.name)
+        doc.write_text(text.replace("](pictures/", f"]({pictures.name}/"))
+        print(f"{PROG}: wrote {doc}")
+    failed = [k for k, s in results.items() if "error" in s]
+    print(f"{PROG} {args.name}: {len(results) - len(failed)} of {len(results)} runs, wall time "
+          f"{wall / 60:.1f} min; report {out / (args.name + '.md')}")
+    return 1 if failed else 0
+
+
+def _ballistic_limits(overrides, runs_dir: Path, jobs: int, members: int, tol: float, progress) -> dict:
+    """The ballistic limit of each scene: :func:`~fabric_fenicsx.studies.limit.bisect_limit`,
+    ``members`` runs per velocity (V0 changed by k x 1e-12)."""
+    from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.ensemble import member_velocity, offsets
+    from fabric_fenicsx.studies.limit import bisect_limit
+    from fabric_fenicsx.studies.runpool import Run, run_all
+
+    limits = {}
+    for scene, file in chapter4.SCENES.items():
+        def evaluate(v, scene=scene, file=file):
+            runs = [Run(f"{scene}-v50-v{v:.4f}-k{k}", str(chapter4.SCENE_DIR / file),
+                        (*overrides, f"projectile.velocity={member_velocity(v, k)!r}")) for k in offsets(members)]
+            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress)
+            bad = [k for k, s in done.items() if "error" in s]
+            if bad:
+                raise RuntimeError(f"v50 of {scene}: run {bad[0]} failed ({done[bad[0]]['error']}); "
+                                   f"see {runs_dir / bad[0] / 'run.log'}")
+            return [bool(s["perforated"]) for s in done.values()]
+
+        print(f"{PROG} v50: {scene}, bisection from {V50_BRACKET} m/s to {tol} m/s, {members} runs a velocity",
+              flush=True)
+        r = bisect_limit(evaluate, *V50_BRACKET, tol=tol)
+        limits[scene] = {**r, "members": members}
+        print(f"{PROG} v50: {scene}: limit {r['limit']} m/s, band {r['band']}", flush=True)
+    return limits
+
+
+def _report(name: str, results: dict, limits: dict, overrides, wall: float, out: Path) -> str:
+    from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.provenance import code_fingerprint
+
+    fp = code_fingerprint()
+    names = [s for s in chapter4.STUDIES if s != "chapter4"] if name == "chapter4" else [name]
+    lines = [f"# The thesis's chapter 4: `fabric-fenicsx study {name}`", "",
+             f"Made by `fabric-fenicsx study {name}` in {wall / 60:.1f} min (wall time, "
+             f"{len(results)} impact runs and the ballistic-limit runs), model version {fp['model_version']}, "
+             f"git {fp['git_head']}. Every run: the scene file of demos/scenes as it is, with "
+             f"`{' '.join('--set ' + o for o in overrides)}`. Deflections are the central deflection at damage "
+             "onset, when the first cell is removed and the largest of the run; the damage reach is the "
+             "largest distance from the impact point of a cell with a damaged yarn at the end. Y90's residual "
+             "velocity after damage is one draw of a wide distribution (docs/mesh_independence.md, section 9): "
+             "read it with the ensembles there.", ""]
+    titles = {"table4": "Table 4: Y90 (two edges clamped, warp along Y)",
+              "table5": "Table 5: XY0 (four edges clamped) next to Y90",
+              "table6": "Table 6: XY45 (four edges clamped, yarns at 45 degrees) next to XY0, and Y0"}
+    pictures = out / "pictures"
+    pictures.mkdir(parents=True, exist_ok=True)
+    for n in names:
+        if n in chapter4.TABLE_SCENES:
+            lines += [f"## {titles[n]}", ""]
+            for scene in chapter4.TABLE_SCENES[n]:
+                lines += [f"**{scene}** (`demos/scenes/{chapter4.SCENES[scene]}`)", "",
+                          chapter4.table_md(scene, results), ""]
+        elif n == "friction":
+            cases = [(f"{s}, friction {mu:g}", chapter4.run_key(s, 57.3, friction=mu))
+                     for s in ("Y90", "XY0") for mu in chapter4.FRICTIONS]
+            lines += ["## Friction (Sec. 4.4.1), 57.3 m/s", "", chapter4.variant_md(results, cases), ""]
+            lines += _damage_pictures(results, cases, out, pictures / "damage_friction.png", "friction")
+        elif n == "fillet":
+            cases = [(f"Y90, fillet {f * 1e3:g} mm", chapter4.run_key("Y90", 57.3, fillet=f))
+                     for f in chapter4.FILLETS]
+            lines += ["## Fillet of the impacting edge (Sec. 4.4.3), Y90 at 57.3 m/s", "",
+                      chapter4.variant_md(results, cases), ""]
+            lines += _damage_pictures(results, cases, out, pictures / "damage_fillet.png", "fillet")
+    if limits:
+        lines += ["## Ballistic limit (v50)", "",
+                  "Bisection between a velocity the fabric holds and one it lets through, several runs a "
+                  "velocity (the impact velocity changed by k x 1e-12 of itself); the band is the final "
+                  "bracket widened to every velocity where a run disagreed with it. The thesis and the "
+                  "experiment put Y90's limit between 34.5 and 39.78 m/s.", "",
+                  "| scene | limit (m/s) | band (m/s) | width (m/s) | velocities tried: perforated runs |",
+                  "|---|---|---|---|---|"]
+        for scene, r in limits.items():
+            lo, hi = r["band"]
+            width = f"{hi - lo:.2f}" if lo is not None and hi is not None else "-"
+            tries = ", ".join(f"{v:.2f}: {sum(o)}/{len(o)}" for v, o in r["tries"])
+            lim = f"{r['limit']:.2f}" if r["limit"] is not None else "not found"
+            lines.append(f"| {scene} | {lim} | {lo} - {hi} | {width} | {tries} |")
+        lines.append("")
+    if name == "chapter4":
+        chapter4.plot_residual(results, pictures / "residual.png")
+        lines += ["## Residual against impact velocity", "", "![residual velocity](pictures/residual.png)", "",
+                  "## The thesis's findings", "", "| finding | holds | the numbers |", "|---|---|---|"]
+        for finding, holds, numbers in chapter4.checklist(results):
+            lines.append(f"| {finding} | {'-' if holds is None else ('yes' if holds else 'no')} | {numbers} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _damage_pictures(results: dict, cases, out: Path, path: Path, what: str) -> list[str]:
+    """The cases' damage at the end side by side (:func:`~fabric_fenicsx.studies.chapter4.plot_damage`)."""
+    from fabric_fenicsx.studies import chapter4
+
+    found = [(label, out / "runs" / key / "damage.npz") for label, key in cases
+             if (out / "runs" / key / "damage.npz").is_file()]
+    if not found:
+        return []
+    chapter4.plot_damage(found, path)
+    return [f"![damage, {what}](pictures/{path.name})", ""]

@@ -1,0 +1,258 @@
+"""The thesis's chapter 4 as studies (issue 15): which runs each study makes, the thesis's
+numbers beside them, and the tables, plot and checklist of docs/validation.md.
+
+Studies (``fabric-fenicsx study NAME``): ``table4`` (Y90 at the five velocities of Table 4),
+``table5`` (XY0 next to Y90), ``table6`` (XY45 next to XY0, and Y0), ``friction`` (Y90 and XY0
+at 57.3 m/s, projectile friction 0.1, 0.5, 2.0; Sec. 4.4.1), ``fillet`` (Y90 at 57.3 m/s, fillet
+0, 0.8, 2 mm; Sec. 4.4.3), ``v50`` (the ballistic limit of each scene, :mod:`limit`) and
+``chapter4`` (all of them). A run is named by its settings (``Y90-v57.3``, ``XY0-v57.3-mu2``,
+``Y90-v57.3-fillet0.8mm``), so studies that need the same run share it.
+
+Nothing here is tuned: the scenes are run as they are (``demos/scenes``), with the user's
+``--set`` overrides applied to every run.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from fabric_fenicsx.studies.runpool import Run
+
+__all__ = ["SCENES", "VELOCITIES", "THESIS", "STUDIES", "FRICTIONS", "FILLETS", "run_key", "plan",
+           "row", "fmt", "table_md", "variant_md", "checklist", "plot_residual", "plot_damage"]
+
+SCENE_DIR = Path(__file__).resolve().parents[2] / "demos" / "scenes"
+SCENES = {"Y90": "y90.toml", "XY0": "xy0.toml", "XY45": "xy45.toml", "Y0": "y0.toml"}
+"""The four scenes of Table 3 (files in demos/scenes)."""
+
+VELOCITIES = (34.5, 39.78, 57.3, 83.06, 123.69)
+"""Impact velocities of Tables 4-6 (m/s)."""
+
+FRICTIONS = (0.1, 0.5, 2.0)
+"""Projectile-fabric friction of Sec. 4.4.1."""
+
+FILLETS = (0.0, 0.8e-3, 2e-3)
+"""Fillet radii of the impacting edge of Sec. 4.4.3 (m)."""
+
+THESIS = {  # Tables 4-6 (thesis simulations; Y90 also the experiment); None = bounced back
+    "Y90": {"residual": (None, 10.0, 32.6, 66.83, 110.0), "absorbed": (21.69, 27.5, 41.18, 45.13, 59.3),
+            "deflection_mm": (50.91, 51.85, 51.75, 51.13, 51.25),
+            "residual_experiment": (None, 5.67, 29.99, 61.54, 97.99),
+            "absorbed_experiment": (21.69, 28.75, 44.22, 57.88, 105.66)},
+    "XY0": {"residual": (13.89, 21.82, 43.1, 71.18, 114.9), "absorbed": (18.5, 20.52, 26.45, 33.99, 38.9),
+            "deflection_mm": (26.5, 26.86, 27.66, 28.26, 25.28)},
+    "XY45": {"residual": (11.13, 19.27, 38.5, 69.97, 113.9), "absorbed": (19.78, 22.5, 33.4, 37.16, 43.15),
+             "deflection_mm": (28.5, 28.69, 31.63, 29.9, 26.27)},
+    "Y0": {},
+}
+
+STUDIES = ("table4", "table5", "table6", "friction", "fillet", "v50", "chapter4")
+
+TABLE_SCENES = {"table4": ("Y90",), "table5": ("XY0", "Y90"), "table6": ("XY45", "XY0", "Y0")}
+
+
+def run_key(scene: str, v0: float, friction: float = 0.5, fillet: float = 0.0) -> str:
+    """The folder name of a run: the scene, V0 and what differs from the scene file."""
+    key = f"{scene}-v{v0:g}"
+    if friction != 0.5:
+        key += f"-mu{friction:g}"
+    if fillet:
+        key += f"-fillet{fillet * 1e3:g}mm"
+    return key
+
+
+def _run(scene: str, v0: float, overrides, friction: float = 0.5, fillet: float = 0.0) -> Run:
+    extra = [f"projectile.velocity={v0!r}"]
+    if friction != 0.5:
+        extra.append(f"projectile.friction={friction!r}")
+    if fillet:
+        extra.append(f"projectile.fillet={fillet!r}")
+    return Run(run_key(scene, v0, friction, fillet), str(SCENE_DIR / SCENES[scene]),
+               (*overrides, *extra))
+
+
+def plan(name: str, overrides=()) -> list[Run]:
+    """The impact runs of study ``name`` (without ``v50``, whose runs depend on their outcomes),
+    every run once."""
+    if name not in STUDIES:
+        raise ValueError(f"unknown study {name!r}; the studies are {', '.join(STUDIES)}")
+    names = [s for s in STUDIES if s not in ("v50", "chapter4")] if name == "chapter4" else [name]
+    runs: dict[str, Run] = {}
+    for n in names:
+        if n in TABLE_SCENES:
+            new = [_run(s, v, overrides) for s in TABLE_SCENES[n] for v in VELOCITIES]
+        elif n == "friction":
+            new = [_run(s, 57.3, overrides, friction=mu) for s in ("Y90", "XY0") for mu in FRICTIONS]
+        elif n == "fillet":
+            new = [_run("Y90", 57.3, overrides, fillet=f) for f in FILLETS]
+        else:
+            new = []
+        runs.update({r.key: r for r in new})
+    return list(runs.values())
+
+
+def row(summary: dict) -> dict:
+    """The numbers of one run that the tables show (SI units; deflections in mm)."""
+    mm = (lambda x: None if x is None else 1e3 * x)
+    e = summary.get("energies", {})
+    return {"residual_velocity": summary.get("residual_velocity"), "absorbed_energy": summary.get("absorbed_energy"),
+            "perforated": summary.get("perforated"), "end_reason": summary.get("end_reason"),
+            "onset_mm": mm(summary.get("damage_onset_deflection")),
+            "first_removal_mm": mm(summary.get("first_removal_deflection")),
+            "peak_mm": mm(summary.get("peak_deflection")),
+            "onset_radius_mm": mm(summary.get("damage_onset_radius")),
+            "damage_extent_mm": mm(summary.get("damage_extent_radius")),
+            "damaged_cells": summary.get("damaged_cells"),
+            "removed_cells": (summary.get("deleted_cells") or 0) + (summary.get("eroded_cells") or 0),
+            "viscous": e.get("viscous_dissipation"), "energy_error": summary.get("energy_error"),
+            "wall_time_s": summary.get("wall_time_s"), "error": summary.get("error")}
+
+
+def fmt(x, digits: int = 2, none: str = "-") -> str:
+    """A table cell: floats to ``digits`` decimals, booleans as yes / no, None as ``none``."""
+    if x is None:
+        return none
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, float):
+        return f"{x:.{digits}f}"
+    return str(x)
+
+
+def table_md(scene: str, results: dict) -> str:
+    """Markdown table of a scene at the five velocities: ours beside the thesis's (and the
+    experiment's for Y90). ``results``: run key -> summary."""
+    ref = THESIS[scene]
+    head = ["V0 (m/s)", "residual (m/s)", "thesis", "absorbed (J)", "thesis"]
+    if "residual_experiment" in ref:
+        head[3:3] = ["experiment"]
+        head.append("experiment")
+    head += ["deflection: onset / first removal / max (mm)", "thesis max (mm)", "damage reach (mm)",
+             "removed cells", "viscous (J)", "end"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for i, v in enumerate(VELOCITIES):
+        s = results.get(run_key(scene, v), {})
+        r = row(s)
+        thesis = (lambda k: ref[k][i] if k in ref else None)
+        cells = [f"{v:g}", fmt(r["residual_velocity"]), fmt(thesis("residual")) if ref else "-"]
+        if "residual_experiment" in ref:
+            cells.append(fmt(thesis("residual_experiment")))
+        cells += [fmt(r["absorbed_energy"]), fmt(thesis("absorbed"))]
+        if "absorbed_experiment" in ref:
+            cells.append(fmt(thesis("absorbed_experiment")))
+        cells += [" / ".join(fmt(r[k], 1) for k in ("onset_mm", "first_removal_mm", "peak_mm")),
+                  fmt(thesis("deflection_mm")), fmt(r["damage_extent_mm"], 1), fmt(r["removed_cells"]),
+                  fmt(r["viscous"]), r["error"] or fmt(r["end_reason"])]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def variant_md(results: dict, runs: list[tuple[str, str]]) -> str:
+    """Markdown table of named single runs (label, run key): the friction and fillet studies."""
+    head = ["case", "residual (m/s)", "absorbed (J)", "onset / max deflection (mm)", "damage starts at r (mm)",
+            "damage reach (mm)", "damaged cells", "removed cells", "end"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for label, key in runs:
+        r = row(results.get(key, {}))
+        lines.append("| " + " | ".join([label, fmt(r["residual_velocity"]), fmt(r["absorbed_energy"]),
+                                        f"{fmt(r['onset_mm'], 1)} / {fmt(r['peak_mm'], 1)}",
+                                        fmt(r["onset_radius_mm"], 1), fmt(r["damage_extent_mm"], 1),
+                                        fmt(r["damaged_cells"]), fmt(r["removed_cells"]),
+                                        r["error"] or fmt(r["end_reason"])]) + " |")
+    return "\n".join(lines)
+
+
+def checklist(results: dict) -> list[tuple[str, bool | None, str]]:
+    """The thesis's qualitative findings (Sec. 4.3-4.5), each (finding, holds, the numbers);
+    holds is None where a run is missing."""
+    def get(key, q):
+        return row(results.get(key, {})).get(q)
+
+    out = []
+    pairs = [(get(run_key("Y90", v), "absorbed_energy"), get(run_key("XY0", v), "absorbed_energy")) for v in VELOCITIES]
+    ok = [a > b for a, b in pairs if a is not None and b is not None]
+    out.append(("two-edge clamping (Y90) absorbs more than four-edge clamping (XY0)",
+                None if len(ok) < len(pairs) else all(ok),
+                "Y90 / XY0 absorbed (J): " + ", ".join(f"{fmt(a)} / {fmt(b)}" for a, b in pairs)))
+    trip = [(get(run_key("XY45", v), "absorbed_energy"), get(run_key("XY0", v), "absorbed_energy"),
+             get(run_key("XY45", v), "peak_mm"), get(run_key("XY0", v), "peak_mm")) for v in VELOCITIES]
+    ok = [a > b and c > d for a, b, c, d in trip if None not in (a, b, c, d)]
+    out.append(("45 degrees (XY45) absorbs more than 0 degrees (XY0) and deflects more",
+                None if len(ok) < len(trip) else all(ok),
+                "XY45 / XY0 absorbed (J), largest deflection (mm): "
+                + ", ".join(f"{fmt(a)} / {fmt(b)}, {fmt(c, 1)} / {fmt(d, 1)}" for a, b, c, d in trip)))
+    reach = {k: get(k, "damage_extent_mm") for k in (run_key("Y90", 57.3, friction=0.1), run_key("Y90", 57.3),
+                                                      run_key("Y90", 57.3, friction=2.0),
+                                                      run_key("Y90", 57.3, fillet=0.8e-3), run_key("XY0", 57.3))}
+    r01, r05, r2, rf, rxy = reach.values()
+    out.append(("low friction (0.1) and a 0.8 mm fillet spread damage further than friction 0.5 with a sharp edge; "
+                "friction 2.0 and four-edge clamping keep it closer",
+                None if None in reach.values() else (r01 > r05 and rf > r05 and r2 < r05 and rxy < r05),
+                "damage reach at 57.3 m/s (mm): Y90 friction 0.1 / 0.5 / 2.0: "
+                f"{fmt(r01, 1)} / {fmt(r05, 1)} / {fmt(r2, 1)}; 0.8 mm fillet {fmt(rf, 1)}; XY0 {fmt(rxy, 1)}"))
+    sharp, round2 = get(run_key("Y90", 57.3), "absorbed_energy"), get(run_key("Y90", 57.3, fillet=2e-3), "absorbed_energy")
+    ratio = None if None in (sharp, round2) or not sharp else round2 / sharp
+    out.append(("the 2 mm fillet lets the projectile through with about half the absorbed energy of the sharp "
+                "edge (ratio 0.35-0.65)", None if ratio is None else 0.35 <= ratio <= 0.65,
+                f"absorbed 2 mm fillet / sharp: {fmt(round2)} / {fmt(sharp)} J = {fmt(ratio, 2)}"))
+    out.append(("early in the impact the stress wave runs faster along the less crimped fill", None,
+                "not measured by these studies yet"))
+    return out
+
+
+def plot_residual(results: dict, path: str | Path) -> None:
+    """Residual against impact velocity for the four scenes, with the thesis's (and the
+    experiment's) points (PNG)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.6))
+    ax.plot(VELOCITIES, VELOCITIES, ":", color="0.6", label="no fabric")
+    for i, scene in enumerate(SCENES):
+        c = f"C{i}"
+        pts = [(v, row(results.get(run_key(scene, v), {}))["residual_velocity"]) for v in VELOCITIES]
+        pts = [p for p in pts if p[1] is not None]
+        if pts:
+            ax.plot(*zip(*pts), "o-", color=c, label=f"{scene}, this model")
+        ref = THESIS[scene]
+        for key, marker, what in (("residual", "s", "thesis"), ("residual_experiment", "^", "experiment")):
+            if key in ref:
+                tp = [(v, r) for v, r in zip(VELOCITIES, ref[key]) if r is not None]
+                ax.plot(*zip(*tp), marker, mfc="none", color=c, ls="--" if what == "thesis" else "-.",
+                        label=f"{scene}, {what}")
+    ax.set_xlabel("impact velocity V0 (m/s)")
+    ax.set_ylabel("residual velocity (m/s; negative: rebound)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_damage(cases: list[tuple[str, Path]], path: str | Path) -> None:
+    """The warp's integrity at the end (SDV2 = alpha1, 1 intact, 0 broken; removed cells
+    blank) of each run side by side, on the reference fabric, with a colour bar. ``cases``:
+    (label, the run's damage.npz)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.collections import PolyCollection
+
+    fig, axes = plt.subplots(1, len(cases), figsize=(3.6 * len(cases) + 0.8, 3.9), squeeze=False)
+    for ax, (label, npz) in zip(axes[0], cases):
+        d = np.load(npz)
+        live = d["live"]
+        quads = d["quads"][live] * 1e3
+        pc = PolyCollection(quads, array=d["SDV2"][live], cmap="viridis", clim=(0.0, 1.0), edgecolors="none")
+        ax.add_collection(pc)
+        lo, hi = d["quads"].reshape(-1, 2).min(axis=0) * 1e3, d["quads"].reshape(-1, 2).max(axis=0) * 1e3
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal")
+        ax.set_title(label, fontsize=9)
+        ax.set_xlabel("x (mm)")
+    axes[0, 0].set_ylabel("y (mm)")
+    fig.colorbar(pc, ax=list(axes[0]), label="warp integrity alpha1 (SDV2)", shrink=0.85)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)

@@ -1,0 +1,117 @@
+"""The chapter-4 studies (issue 15): the ballistic-limit bisection on stand-in functions, which
+runs each study makes, the thesis's findings from the numbers, parallel runs that equal serial
+ones, and the ``study`` command on tiny runs."""
+import json
+
+import pytest
+
+from fabric_fenicsx.studies import chapter4
+from fabric_fenicsx.studies.limit import bisect_limit
+from fabric_fenicsx.studies.runpool import Run, run_all
+
+TINY = ("mesh.kind=uniform", "mesh.n=12", "mesh.side=0.08", "run.t_end=2e-4", "projectile.diameter=0.02",
+        "projectile.mass=0.005", "output.xdmf_interval=0", "output.progress_interval=0")
+"""A 12 x 12 fabric of 80 mm hit by a 5 g projectile for 0.2 ms: a run of about a second."""
+
+
+def test_bisection_brackets_a_sharp_limit_to_the_tolerance():
+    r = bisect_limit(lambda v: [v > 37.2], 20.0, 60.0, tol=0.5)
+    lo, hi = r["bracket"]
+    assert r["found"] and lo <= 37.2 < hi and hi - lo <= 0.5 and r["band"] == (lo, hi)
+    assert r["limit"] == pytest.approx(37.2, abs=0.25)
+
+
+def test_bisection_keeps_scattered_outcomes_as_a_band():
+    """Two runs a velocity whose limits differ by 1.2 m/s: the band holds every velocity where
+    they disagreed, wider than the bracket."""
+    r = bisect_limit(lambda v: [v > 36.6, v > 37.8], 20.0, 60.0, tol=0.5)
+    assert r["found"] and r["band"][0] <= 36.6 + 0.5 and r["band"][1] >= 37.5
+    assert r["band"][1] - r["band"][0] > r["bracket"][1] - r["bracket"][0]
+
+
+def test_bisection_widens_the_bracket_and_says_when_it_finds_no_limit():
+    low = bisect_limit(lambda v: [v > 7.2], 20.0, 60.0)
+    assert low["found"] and low["bracket"][0] <= 7.2 < low["bracket"][1]
+    high = bisect_limit(lambda v: [v > 700.0], 20.0, 60.0, expand=3)
+    assert not high["found"] and high["limit"] is None
+    assert high["bracket"] == (480.0, None) and [v for v, _ in high["tries"]] == [20.0, 60.0, 120.0, 240.0, 480.0]
+    with pytest.raises(ValueError):
+        bisect_limit(lambda v: [True], 60.0, 20.0)
+
+
+def test_every_study_runs_what_the_thesis_ran_and_shares_runs():
+    counts = {name: len(chapter4.plan(name)) for name in ("table4", "table5", "table6", "friction", "fillet")}
+    assert counts == {"table4": 5, "table5": 10, "table6": 15, "friction": 6, "fillet": 3}
+    keys = [r.key for r in chapter4.plan("chapter4", ("run.t_end=1e-3",))]
+    assert len(keys) == len(set(keys)) == 20 + 4 + 2       # four scenes x five V0, friction, fillet
+    assert "Y90-v57.3" in keys and "XY0-v57.3-mu2" in keys and "Y90-v57.3-fillet0.8mm" in keys
+    run = {r.key: r for r in chapter4.plan("chapter4", ("run.t_end=1e-3",))}["XY0-v57.3-mu0.1"]
+    assert run.overrides[0] == "run.t_end=1e-3" and "projectile.friction=0.1" in run.overrides
+    assert chapter4.plan("v50") == []
+    with pytest.raises(ValueError, match="unknown study"):
+        chapter4.plan("table7")
+
+
+def _summary(absorbed, peak=0.03, reach=0.02):
+    return {"residual_velocity": 10.0, "absorbed_energy": absorbed, "peak_deflection": peak,
+            "damage_extent_radius": reach}
+
+
+def test_the_checklist_answers_from_the_numbers():
+    results = {}
+    for v in chapter4.VELOCITIES:
+        results[chapter4.run_key("Y90", v)] = _summary(40.0, reach=0.05)
+        results[chapter4.run_key("XY0", v)] = _summary(30.0, peak=0.03, reach=0.02)
+        results[chapter4.run_key("XY45", v)] = _summary(35.0, peak=0.035)
+    results[chapter4.run_key("Y90", 57.3, friction=0.1)] = _summary(40.0, reach=0.09)
+    results[chapter4.run_key("Y90", 57.3, friction=2.0)] = _summary(40.0, reach=0.03)
+    results[chapter4.run_key("Y90", 57.3, fillet=0.8e-3)] = _summary(40.0, reach=0.08)
+    results[chapter4.run_key("Y90", 57.3, fillet=2e-3)] = _summary(20.0)
+    holds = [h for _, h, _ in chapter4.checklist(results)]
+    assert holds == [True, True, True, True, None]          # the wave speeds are not measured
+    results[chapter4.run_key("XY0", 83.06)] = _summary(45.0)  # one velocity where XY0 absorbs more
+    results[chapter4.run_key("Y90", 57.3, fillet=2e-3)] = _summary(35.0)
+    holds = [h for _, h, _ in chapter4.checklist(results)]
+    assert holds[0] is False and holds[3] is False
+    del results[chapter4.run_key("XY45", 34.5)]
+    assert chapter4.checklist(results)[1][1] is None
+
+
+def test_runs_in_parallel_equal_the_serial_ones_and_are_reused(tmp_path):
+    scene = str(chapter4.SCENE_DIR / "y90.toml")
+    runs = [Run("a", scene, (*TINY, "projectile.velocity=20.0")), Run("b", scene, (*TINY, "projectile.velocity=60.0"))]
+    serial = run_all(runs, tmp_path / "serial", jobs=1)
+    seen = []
+    parallel = run_all(runs, tmp_path / "parallel", jobs=2, on_done=lambda r, s, reused: seen.append(reused))
+    assert seen == [False, False]
+    for key in ("a", "b"):
+        assert "error" not in serial[key], serial[key]
+        for q in ("residual_velocity", "absorbed_energy", "n_steps", "energy_error"):
+            assert parallel[key][q] == serial[key][q], (key, q)
+    assert serial["a"]["residual_velocity"] != serial["b"]["residual_velocity"]
+    again = []
+    run_all(runs, tmp_path / "parallel", jobs=2, on_done=lambda r, s, reused: again.append(reused))
+    assert again == [True, True]
+    with pytest.raises(ValueError, match="must differ"):
+        run_all([runs[0], runs[0]], tmp_path / "x")
+
+
+def test_the_study_command_on_tiny_runs_and_its_input_errors(tmp_path, capsys):
+    from fabric_fenicsx.cli import main
+
+    tiny = [a for o in TINY for a in ("--set", o)]
+    out = tmp_path / "fillet"
+    assert main(["study", "fillet", "--out", str(out), "--jobs", "2", *tiny]) == 0
+    md = (out / "fillet.md").read_text()
+    assert md.count("| Y90, fillet ") == 3 and "damage_fillet.png" in md
+    assert (out / "pictures" / "damage_fillet.png").stat().st_size > 10000
+    report = json.loads((out / "fillet.json").read_text())
+    assert set(report["runs"]) == {"Y90-v57.3", "Y90-v57.3-fillet0.8mm", "Y90-v57.3-fillet2mm"}
+    capsys.readouterr()
+    assert main(["study", "fillet", "--out", str(out), "--jobs", "2", *tiny]) == 0
+    assert capsys.readouterr().out.count(": stored,") == 3
+    assert main(["study", "table7", "--out", str(tmp_path / "x")]) == 2
+    assert "unknown study 'table7'" in capsys.readouterr().err
+    assert main(["study", "table4", "--jobs", "0", "--out", str(tmp_path / "y")]) == 2
+    assert "--jobs must be at least 1" in capsys.readouterr().err
+    assert main(["study", "table4", "--set", "run.damping=7", "--out", str(tmp_path / "z")]) == 2
