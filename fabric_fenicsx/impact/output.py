@@ -47,7 +47,7 @@ DATA_NAME = "impact.bin"
 H5_NAME = "impact.h5"  # written by earlier versions: removed like the others
 VIEWER_NAME = "paraview_view.py"
 OWNED_FILES = ("run.json", "history.csv", "summary.json", XDMF_NAME, DATA_NAME, H5_NAME, VIEWER_NAME,
-               "velocity_history.png", "damage_map.png", "damage.npz")
+               "velocity_history.png", "damage_map.png", "damage.npz", "snapshots.png", "impact.gif")
 """Every file an impact run writes into its folder; a new run removes them first."""
 
 _QUAD_CYCLE = np.array([0, 1, 3, 2])  # DOLFINx tensor-product vertex order -> perimeter order

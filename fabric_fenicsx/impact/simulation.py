@@ -27,6 +27,7 @@ from fabric_fenicsx.fem.projectile import ProjectileState, advance
 from fabric_fenicsx.fem.yarn_stress import YarnStress, straight_yarn_modulus
 from fabric_fenicsx.impact.chatter import chatter_statistics
 from fabric_fenicsx.impact.ledger import EnergyLedger, reduce_named
+from fabric_fenicsx.impact.pictures import FabricPictures
 from fabric_fenicsx.impact.removal import CellRemoval
 from fabric_fenicsx.impact.scene import Scene
 from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, build_projectile, build_terms,
@@ -158,6 +159,9 @@ class ImpactSimulation:
 
         self.output = ImpactOutput(self.out_dir, m, list(sc.output.fields) if sc.output.xdmf_interval > 0 else [],
                                    comm, HISTORY_COLUMNS, scene=sc)
+        out = sc.output
+        self.pictures = (FabricPictures(m, comm, out.animation_interval if out.animation else 0.0)
+                         if out.png or out.animation else None)
         self.ledger = EnergyLedger()
         self.clock = _Clock()
         self._tile_seconds0 = self.surrogate.build_seconds
@@ -273,6 +277,8 @@ class ImpactSimulation:
         if sums["deleted"] or sums["eroded"]:
             self.removal.update_nodes()
         ledger.book_step(sums, maxima)
+        if -sums["central_uz"] >= ledger.peak_deflection:
+            self._picture("largest deflection", t_n, -sums["central_uz"])
         if sums["n_contact"] > 0 and ledger.t_touch is None:
             ledger.t_touch, ledger.step_touch = t_n, loop.step
         if sums["n_attached"] > 0:
@@ -281,10 +287,16 @@ class ImpactSimulation:
             ledger.damage_onset_time = t_n
             ledger.damage_onset_deflection = -sums["central_uz"]
             ledger.damage_onset_position = self._onset_position()
+            self._picture("damage onset", t_n, -sums["central_uz"])
             x, y = ledger.damage_onset_position
             self._say(f"  damage starts at t = {t_n * 1e6:.2f} us, central deflection "
                       f"{-sums['central_uz'] * 1e3:.2f} mm, in the cell at (x, y) = ({x * 1e3:.1f}, "
                       f"{y * 1e3:.1f}) mm")
+
+    def _picture(self, name: str, t: float, deflection: float) -> None:
+        """Keep the fabric's state for snapshots.png (no-op without pictures)."""
+        if self.pictures is not None:
+            self.pictures.keep(name, t, deflection, self.material.alpha1, self.live_cells)
 
     def _onset_position(self) -> tuple[float, float]:
         """Reference (x, y) of the centre of the cell whose point is the most damaged at damage
@@ -341,6 +353,8 @@ class ImpactSimulation:
         if t_n >= loop.next_frame:
             self._frame(t_n)
             loop.next_frame = _next_time(loop.next_frame, out.xdmf_interval, t_n)
+        if self.pictures is not None and self.pictures.frame_due(t_n):
+            self.pictures.add_frame(t_n, -self.ledger.central_uz, self.material.alpha1, self.live_cells)
 
     def _check_trouble(self, loop: _Loop, t_n: float, energy, KE_p: float, maxima: dict) -> None:
         """Stop with a clear message on a blow-up or a broken energy balance."""
@@ -605,6 +619,9 @@ class ImpactSimulation:
                       f"E1 = {st.E_max[0]:.4g}, E2 = {st.E_max[1]:.4g} on rank 0): their stress was "
                       "taken at the table's end, so the run left the model's range there")
         self.output.finish(summary, self.live_cells, self.point_fields(), sc.output.png)
+        if self.pictures is not None:
+            self._picture("end", cd.time, -b.central_uz)
+            self.pictures.write(self.out_dir, snapshots=sc.output.png)
         self._say(f"impact: {end_reason} at t = {cd.time * 1e6:.1f} us after {n_steps} steps "
                   f"({wall:.1f} s): v0 = {v0:g} m/s, residual velocity {v_res:.3f} m/s, absorbed "
                   f"{summary['absorbed_energy']:.2f} J, energy error {b.energy_error:.2e}, removed cells "
