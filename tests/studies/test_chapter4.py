@@ -2,6 +2,7 @@
 runs each study makes, the thesis's findings from the numbers, parallel runs that equal serial
 ones, and the ``study`` command on tiny runs."""
 import json
+import sys
 
 import pytest
 
@@ -16,25 +17,28 @@ TINY = ("mesh.kind=uniform", "mesh.n=12", "mesh.side=0.08", "run.t_end=2e-4", "p
 
 def test_bisection_brackets_a_sharp_limit_to_the_tolerance():
     r = bisect_limit(lambda v: [v > 37.2], 20.0, 60.0, tol=0.5)
-    lo, hi = r["bracket"]
-    assert r["found"] and lo <= 37.2 < hi and hi - lo <= 0.5 and r["band"] == (lo, hi)
+    lo, hi = r["band"]
+    assert r["found"] and lo <= 37.2 < hi and hi - lo <= 0.5 and r["lower"] == r["upper"] == (lo, hi)
     assert r["limit"] == pytest.approx(37.2, abs=0.25)
 
 
 def test_bisection_keeps_scattered_outcomes_as_a_band():
-    """Two runs a velocity whose limits differ by 1.2 m/s: the band holds every velocity where
-    they disagreed, wider than the bracket."""
+    """Two runs a velocity whose limits are 36.6 and 37.8 m/s: the band runs from the last
+    velocity where both held to the first where both perforated, each edge to the tolerance."""
     r = bisect_limit(lambda v: [v > 36.6, v > 37.8], 20.0, 60.0, tol=0.5)
-    assert r["found"] and r["band"][0] <= 36.6 + 0.5 and r["band"][1] >= 37.5
-    assert r["band"][1] - r["band"][0] > r["bracket"][1] - r["bracket"][0]
+    lo, hi = r["band"]
+    assert r["found"] and 36.1 <= lo <= 36.6 and 37.8 <= hi <= 38.3
+    assert r["lower"][0] <= 36.6 < r["lower"][1] and r["upper"][0] <= 37.8 < r["upper"][1]
+    velocities = [v for v, _ in r["tries"]]
+    assert len(velocities) == len(set(velocities))           # no velocity run twice
 
 
 def test_bisection_widens_the_bracket_and_says_when_it_finds_no_limit():
     low = bisect_limit(lambda v: [v > 7.2], 20.0, 60.0)
-    assert low["found"] and low["bracket"][0] <= 7.2 < low["bracket"][1]
+    assert low["found"] and low["band"][0] <= 7.2 < low["band"][1]
     high = bisect_limit(lambda v: [v > 700.0], 20.0, 60.0, expand=3)
     assert not high["found"] and high["limit"] is None
-    assert high["bracket"] == (480.0, None) and [v for v, _ in high["tries"]] == [20.0, 60.0, 120.0, 240.0, 480.0]
+    assert high["band"] == (480.0, None) and [v for v, _ in high["tries"]] == [20.0, 60.0, 120.0, 240.0, 480.0]
     with pytest.raises(ValueError):
         bisect_limit(lambda v: [True], 60.0, 20.0)
 
@@ -115,3 +119,32 @@ def test_the_study_command_on_tiny_runs_and_its_input_errors(tmp_path, capsys):
     assert main(["study", "table4", "--jobs", "0", "--out", str(tmp_path / "y")]) == 2
     assert "--jobs must be at least 1" in capsys.readouterr().err
     assert main(["study", "table4", "--set", "run.damping=7", "--out", str(tmp_path / "z")]) == 2
+
+
+def test_the_ballistic_limit_study_bisects_each_scene_on_its_runs(tmp_path, monkeypatch, capsys):
+    """``study v50`` with stand-in runs (a run perforates above 37 m/s, Y0's members disagree
+    between 41 and 42 m/s, XY45's runs fail): each scene's limit and band, the failure reported
+    and the other scenes done."""
+    from fabric_fenicsx.cli import main
+    from fabric_fenicsx.studies import runpool
+
+    def command(run, out):
+        v = float([o for o in run.overrides if o.startswith("projectile.velocity=")][-1].split("=")[1])
+        scene = run.key.split("-")[0]
+        if scene == "XY45":
+            return [sys.executable, "-c", "import sys; print('stand-in failure'); sys.exit(1)"]
+        limit = 41.0 if scene == "Y0" and run.key.endswith("k0") else 42.0 if scene == "Y0" else 37.0
+        summary = dict(residual_velocity=v - limit, absorbed_energy=1.0, end_reason="x", perforated=v > limit)
+        return [sys.executable, "-c", f"import json; open({str(out / 'summary.json')!r}, 'w').write({json.dumps(summary)!r})"]
+    monkeypatch.setattr(runpool, "_command", command)
+    monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
+    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 0
+    limits = json.loads((tmp_path / "v50.json").read_text())["v50"]
+    for scene in ("Y90", "XY0"):
+        lo, hi = limits[scene]["band"]
+        assert lo <= 37.0 < hi and hi - lo <= 0.5
+    lo, hi = limits["Y0"]["band"]
+    assert 40.5 <= lo <= 41.0 and 42.0 <= hi <= 42.5
+    assert "stand-in failure" in limits["XY45"]["error"]
+    md = (tmp_path / "v50.md").read_text()
+    assert "| XY45 | failed:" in md and "| Y90 | 37." in md
