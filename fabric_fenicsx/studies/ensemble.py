@@ -85,7 +85,7 @@ def summarise(rows: list[dict], perturbation: float = PERTURBATION) -> dict:
     """The ensemble's report: its members (rows) and :func:`statistics` of every quantity."""
     return {"perturbation": perturbation, "members": rows,
             "statistics": {q: statistics([r.get(q) for r in rows]) for q in QUANTITIES},
-            "end_reasons": {e: sum(r.get("end_reason") == e for r in rows)
+            "end_reasons": {e: sum(str(r.get("end_reason")) == e for r in rows)
                             for e in sorted({str(r.get("end_reason")) for r in rows})}}
 
 
