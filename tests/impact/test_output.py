@@ -158,7 +158,7 @@ def test_the_paraview_script_renders(damaged_run, tmp_path):
 
 def test_a_new_run_removes_the_last_runs_output(tmp_path):
     out = tmp_path / "run"
-    first = run_impact(tiny(["run.t_end=1e-5", "output.png=true"]), out, verbose=False)
+    first = run_impact(tiny(["run.t_end=1e-5", "output.png=true", "output.animation=true"]), out, verbose=False)
     written = {p.name for p in out.iterdir()}
     assert written == set(OWNED_FILES) - {"impact.h5"}          # every file a run can write
     (out / "notes.txt").write_text("mine")
