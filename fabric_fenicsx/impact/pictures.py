@@ -39,9 +39,9 @@ class FabricPictures:
         self.next_frame = 0.0 if self.animation_interval > 0 else np.inf
 
     def _state(self, t: float, deflection: float, alpha1: np.ndarray, live: np.ndarray) -> tuple:
-        u = self.m.u.x.array.reshape(-1, 3)
-        cells = alpha1.reshape(self.m.n_cells, -1).mean(axis=1)
-        return (t, deflection, u[self.nodes].copy(), cells, np.asarray(live, bool)[:self.m.n_cells].copy())
+        # plain copies only: "largest deflection" is kept at every step while the fabric deflects
+        return (t, deflection, self.m.u.x.array.copy(), np.array(alpha1, copy=True),
+                np.array(live[:self.m.n_cells], dtype=bool, copy=True))
 
     def keep(self, name: str, t: float, deflection: float, alpha1: np.ndarray, live: np.ndarray) -> None:
         """Keep the current state (u of the membrane, alpha1 at the points, the live cells) as
@@ -58,7 +58,9 @@ class FabricPictures:
 
     def _gathered(self, states: list[tuple]):
         """Per state on rank 0: (t, deflection, deformed quads (n, 4, 3), alpha1, live)."""
-        local = [(self.X[self.nodes] + u, a, live) for (_, _, u, a, live) in states]
+        n = self.m.n_cells
+        local = [(self.X[self.nodes] + u.reshape(-1, 3)[self.nodes], a.reshape(n, -1).mean(axis=1), live)
+                 for (_, _, u, a, live) in states]
         parts = self.comm.gather(local, root=0)
         if self.comm.rank != 0:
             return None
