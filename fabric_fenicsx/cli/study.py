@@ -219,13 +219,17 @@ def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall
                   "|---|---|---|---|---|"]
         for scene, r in limits.items():
             if "error" in r:
-                lines.append(f"| {scene} | failed: {r['error']} | | | |")
+                lines.append(f"| {scene} | not found: a run failed ({_short(r['error'])}) | | | |")
                 continue
             lo, hi = r["band"]
             width = f"{hi - lo:.2f}" if lo is not None and hi is not None else "-"
             tries = ", ".join(f"{v:.2f}: {sum(o)}/{len(o)}" for v, o in r["tries"])
             lim = f"{r['limit']:.2f}" if r["limit"] is not None else "not found"
             lines.append(f"| {scene} | {lim} | {lo} - {hi} | {width} | {tries} |")
+        lines += ["", "Every run of a scene at the velocities of its table and of the bisection together "
+                  "(the velocities where at least one run perforated and where at least one held):", ""]
+        for scene in limits:
+            lines.append(f"- {scene}: {_outcomes(scene, results, limits[scene])}")
         lines.append("")
     if name == "chapter4":
         chapter4.plot_residual(results, pictures / "residual.png")
@@ -235,6 +239,29 @@ def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall
             lines.append(f"| {finding} | {'-' if holds is None else ('yes' if holds else 'no')} | {numbers} |")
         lines.append("")
     return "\n".join(lines)
+
+
+def _short(error: str) -> str:
+    """The first clause of a run's error message."""
+    return error.split("; largest")[0].split(". Likely")[0][:240]
+
+
+def _outcomes(scene: str, results: dict, limit: dict) -> str:
+    """Lowest velocity at which a run of ``scene`` perforated and highest at which one held,
+    over the table's runs and the bisection's."""
+    from fabric_fenicsx.studies import chapter4
+
+    runs = [(v, bool(results.get(chapter4.run_key(scene, v), {}).get("perforated")))
+            for v in chapter4.VELOCITIES if "perforated" in results.get(chapter4.run_key(scene, v), {})]
+    runs += [(v, o) for v, outs in limit.get("tries", []) for o in outs]
+    through = [v for v, o in runs if o]
+    held = [v for v, o in runs if not o]
+    if not through or not held:
+        return "no runs to compare"
+    lo, hi = min(through), max(held)
+    if lo > hi:
+        return f"every run held up to {hi:g} m/s and perforated from {lo:g} m/s"
+    return f"runs perforated from {lo:g} m/s and held up to {hi:g} m/s: outcomes overlap over {hi - lo:.2f} m/s"
 
 
 def _damage_pictures(results: dict, cases, out: Path, path: Path, what: str) -> list[str]:

@@ -173,13 +173,14 @@ def checklist(results: dict, waves: dict | None = None) -> list[tuple[str, bool 
     ok = [a > b for a, b in pairs if a is not None and b is not None]
     out.append(("two-edge clamping (Y90) absorbs more than four-edge clamping (XY0)",
                 None if len(ok) < len(pairs) else all(ok),
-                "Y90 / XY0 absorbed (J): " + ", ".join(f"{fmt(a)} / {fmt(b)}" for a, b in pairs)))
+                f"at {sum(ok)} of {len(pairs)} velocities; Y90 / XY0 absorbed (J): "
+                + ", ".join(f"{fmt(a)} / {fmt(b)}" for a, b in pairs)))
     trip = [(get(run_key("XY45", v), "absorbed_energy"), get(run_key("XY0", v), "absorbed_energy"),
              get(run_key("XY45", v), "peak_mm"), get(run_key("XY0", v), "peak_mm")) for v in VELOCITIES]
     ok = [a > b and c > d for a, b, c, d in trip if None not in (a, b, c, d)]
     out.append(("45 degrees (XY45) absorbs more than 0 degrees (XY0) and deflects more",
                 None if len(ok) < len(trip) else all(ok),
-                "XY45 / XY0 absorbed (J), largest deflection (mm): "
+                f"both at {sum(ok)} of {len(trip)} velocities; XY45 / XY0 absorbed (J), largest deflection (mm): "
                 + ", ".join(f"{fmt(a)} / {fmt(b)}, {fmt(c, 1)} / {fmt(d, 1)}" for a, b, c, d in trip)))
     reach = {k: get(k, "damage_extent_mm") for k in (run_key("Y90", 57.3, friction=0.1), run_key("Y90", 57.3),
                                                       run_key("Y90", 57.3, friction=2.0),
@@ -189,7 +190,10 @@ def checklist(results: dict, waves: dict | None = None) -> list[tuple[str, bool 
                 "friction 2.0 and four-edge clamping keep it closer",
                 None if None in reach.values() else (r01 > r05 and rf > r05 and r2 < r05 and rxy < r05),
                 "damage reach at 57.3 m/s (mm): Y90 friction 0.1 / 0.5 / 2.0: "
-                f"{fmt(r01, 1)} / {fmt(r05, 1)} / {fmt(r2, 1)}; 0.8 mm fillet {fmt(rf, 1)}; XY0 {fmt(rxy, 1)}"))
+                f"{fmt(r01, 1)} / {fmt(r05, 1)} / {fmt(r2, 1)}; 0.8 mm fillet {fmt(rf, 1)}; XY0 {fmt(rxy, 1)}"
+                + ("" if None in reach.values() else
+                   f" (further with friction 0.1: {fmt(r01 > r05)}, with the fillet: {fmt(rf > r05)}; "
+                   f"closer with friction 2.0: {fmt(r2 < r05)}, clamped all round: {fmt(rxy < r05)})")))
     sharp, round2 = get(run_key("Y90", 57.3), "absorbed_energy"), get(run_key("Y90", 57.3, fillet=2e-3), "absorbed_energy")
     ratio = None if None in (sharp, round2) or not sharp else round2 / sharp
     out.append(("the 2 mm fillet lets the projectile through with about half the absorbed energy of the sharp "

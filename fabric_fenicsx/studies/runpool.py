@@ -1,7 +1,8 @@
 """Independent impact runs of a study, ``jobs`` at a time, each a ``fabric-fenicsx impact``
 process of its own; a run whose summary.json is stored with the same settings and model version
 (:mod:`fabric_fenicsx.studies.provenance`) is reused, not run again, so an interrupted study
-resumes where it stopped.
+resumes where it stopped; so is a run that failed (failed.json: its error, settings and model
+version), which would fail the same way again.
 
 A run is a :class:`Run` (a folder name, a scene file, ``--set`` overrides); :func:`run_all`
 returns each run's summary, or a row with ``error`` (the exit code and the last line of its
@@ -34,11 +35,19 @@ def _command(run: Run, folder: Path) -> list[str]:
             "--quiet", *[a for o in run.overrides for a in ("--set", o)]]
 
 
-def _stored(run: Run, folder: Path) -> dict | None:
+def _settings(run: Run) -> dict:
     from fabric_fenicsx.impact.scene import load_scene
+
+    return load_scene(run.scene, list(run.overrides)).to_dict()
+
+
+def _stored(run: Run, folder: Path) -> dict | None:
+    """The run's stored summary, or its stored failure (failed.json: the same settings and model
+    version fail the same way), or None."""
     from fabric_fenicsx.studies.provenance import load_if_same
 
-    return load_if_same(folder / "summary.json", load_scene(run.scene, list(run.overrides)).to_dict())
+    settings = _settings(run)
+    return load_if_same(folder / "summary.json", settings) or load_if_same(folder / "failed.json", settings)
 
 
 def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, reuse: bool = True) -> dict:
@@ -67,6 +76,7 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
             folder = out_dir / run.key
             folder.mkdir(parents=True, exist_ok=True)
             (folder / "summary.json").unlink(missing_ok=True)   # never read an older run's
+            (folder / "failed.json").unlink(missing_ok=True)
             log = open(folder / "run.log", "w")
             running[run.key] = (subprocess.Popen(_command(run, folder), stdout=log, stderr=subprocess.STDOUT,
                                                  env=env), run, folder, log)
@@ -81,7 +91,21 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
             except (OSError, ValueError):
                 lines = (folder / "run.log").read_text(errors="replace").strip().splitlines()
                 summary = {"error": f"exit code {proc.returncode}: {lines[-1] if lines else 'no output'}"}
+                _record_failure(run, folder, summary)
             results[key] = summary
             if on_done is not None:
                 on_done(run, summary, False)
     return {k: results[k] for k in keys}
+
+
+def _record_failure(run: Run, folder: Path, summary: dict) -> None:
+    """failed.json beside the run's log: its error, settings and model version, so that the
+    study reports it again instead of repeating a run that fails the same way."""
+    from fabric_fenicsx.studies.provenance import model_version
+
+    try:
+        settings = _settings(run)
+    except Exception:        # the scene itself is bad: nothing to reuse
+        return
+    (folder / "failed.json").write_text(json.dumps({**summary, "settings": settings,
+                                                    "model_version": model_version()}, indent=1))

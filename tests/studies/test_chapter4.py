@@ -147,4 +147,14 @@ def test_the_ballistic_limit_study_bisects_each_scene_on_its_runs(tmp_path, monk
     assert 40.5 <= lo <= 41.0 and 42.0 <= hi <= 42.5
     assert "stand-in failure" in limits["XY45"]["error"]
     md = (tmp_path / "v50.md").read_text()
-    assert "| XY45 | failed:" in md and "| Y90 | 37." in md
+    xy45 = [line for line in md.splitlines() if line.startswith("| XY45 |")]
+    assert len(xy45) == 1 and "not found: a run failed" in xy45[0] and "stand-in failure" in xy45[0]
+    assert "| Y90 | 37." in md
+    assert "- Y0: runs perforated from 41" in md
+    # the failure is stored with its settings and model version and reported again, not rerun
+    failed = tmp_path / "runs" / "XY45-v50-v20.0000-k0" / "failed.json"
+    assert json.loads(failed.read_text())["error"] == "exit code 1: stand-in failure"
+    monkeypatch.undo()
+    monkeypatch.setattr(runpool, "_command", lambda run, out: (_ for _ in ()).throw(AssertionError(run.key))
+                        if run.key.startswith("XY45") else command(run, out))
+    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 0
