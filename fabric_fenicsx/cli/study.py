@@ -256,8 +256,12 @@ def _outcomes(scene: str, results: dict, limit: dict) -> str:
     runs += [(v, o) for v, outs in limit.get("tries", []) for o in outs]
     through = [v for v, o in runs if o]
     held = [v for v, o in runs if not o]
-    if not through or not held:
-        return "no runs to compare"
+    if not runs:
+        return "no runs"
+    if not held:
+        return f"every run perforated ({min(through):g} to {max(through):g} m/s)"
+    if not through:
+        return f"every run held ({min(held):g} to {max(held):g} m/s)"
     lo, hi = min(through), max(held)
     if lo > hi:
         return f"every run held up to {hi:g} m/s and perforated from {lo:g} m/s"

@@ -240,30 +240,35 @@ def plot_residual(results: dict, path: str | Path) -> None:
     plt.close(fig)
 
 
-def plot_damage(cases: list[tuple[str, Path]], path: str | Path) -> None:
+def plot_damage(cases: list[tuple[str, Path]], path: str | Path, half_width: float = 0.07) -> None:
     """The warp's integrity at the end (SDV2 = alpha1, 1 intact, 0 broken; removed cells
-    blank) of each run side by side, on the reference fabric, with a colour bar. ``cases``:
-    (label, the run's damage.npz)."""
+    blank) of each run, three to a row, within ``half_width`` (m) of the centre of the
+    reference fabric, with a colour bar. ``cases``: (label, the run's damage.npz)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
     from matplotlib.collections import PolyCollection
 
-    fig, axes = plt.subplots(1, len(cases), figsize=(3.6 * len(cases) + 0.8, 3.9), squeeze=False)
-    for ax, (label, npz) in zip(axes[0], cases):
+    cols = min(3, len(cases))
+    rows = -(-len(cases) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.5 * cols + 1.0, 3.4 * rows), squeeze=False)
+    for ax in axes.ravel()[len(cases):]:
+        ax.axis("off")
+    lim = half_width * 1e3
+    for ax, (label, npz) in zip(axes.ravel(), cases):
         d = np.load(npz)
         live = d["live"]
-        quads = d["quads"][live] * 1e3
-        pc = PolyCollection(quads, array=d["SDV2"][live], cmap="viridis", clim=(0.0, 1.0), edgecolors="none")
+        pc = PolyCollection(d["quads"][live] * 1e3, array=d["SDV2"][live], cmap="viridis", clim=(0.0, 1.0),
+                            edgecolors="face", linewidths=0.2)
         ax.add_collection(pc)
-        lo, hi = d["quads"].reshape(-1, 2).min(axis=0) * 1e3, d["quads"].reshape(-1, 2).max(axis=0) * 1e3
-        ax.set_xlim(lo[0], hi[0])
-        ax.set_ylim(lo[1], hi[1])
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
         ax.set_aspect("equal")
         ax.set_title(label, fontsize=9)
-        ax.set_xlabel("x (mm)")
-    axes[0, 0].set_ylabel("y (mm)")
-    fig.colorbar(pc, ax=list(axes[0]), label="warp integrity alpha1 (SDV2)", shrink=0.85)
+        ax.set_xlabel("x (mm)", fontsize=8)
+        ax.set_ylabel("y (mm)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    fig.colorbar(pc, ax=list(axes.ravel()), label="warp integrity alpha1 (SDV2); blank: removed", shrink=0.8)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
