@@ -2,7 +2,7 @@
 process of its own; a run whose summary.json is stored with the same settings and model version
 (:mod:`fabric_fenicsx.studies.provenance`) is reused, not run again, so an interrupted study
 resumes where it stopped; so is a run that failed (failed.json: its error, settings and model
-version), which would fail the same way again.
+version), which would fail the same way again (a run killed or interrupted is run again).
 
 A run is a :class:`Run` (a folder name, a scene file, ``--set`` overrides); :func:`run_all`
 returns each run's summary, or a row with ``error`` (the exit code and the last line of its
@@ -91,7 +91,8 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
             except (OSError, ValueError):
                 lines = (folder / "run.log").read_text(errors="replace").strip().splitlines()
                 summary = {"error": f"exit code {proc.returncode}: {lines[-1] if lines else 'no output'}"}
-                _record_failure(run, folder, summary)
+                if proc.returncode > 0 and proc.returncode != 130:   # not killed, not interrupted
+                    _record_failure(run, folder, summary)
             results[key] = summary
             if on_done is not None:
                 on_done(run, summary, False)

@@ -158,3 +158,18 @@ def test_the_ballistic_limit_study_bisects_each_scene_on_its_runs(tmp_path, monk
     monkeypatch.setattr(runpool, "_command", lambda run, out: (_ for _ in ()).throw(AssertionError(run.key))
                         if run.key.startswith("XY45") else command(run, out))
     assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 0
+
+
+def test_a_failure_is_stored_but_a_killed_or_interrupted_run_is_not(tmp_path, monkeypatch):
+    from fabric_fenicsx.studies import runpool
+
+    codes = {"fails": "sys.exit(1)", "killed": "os.kill(os.getpid(), signal.SIGKILL)", "interrupted": "sys.exit(130)"}
+    monkeypatch.setattr(runpool, "_command", lambda run, out: [
+        sys.executable, "-c", f"import os, signal, sys; print('stop'); {codes[run.key]}"])
+    scene = str(chapter4.SCENE_DIR / "y90.toml")
+    done = run_all([Run(k, scene, TINY) for k in codes], tmp_path, jobs=3)
+    assert all("error" in s for s in done.values())
+    assert [k for k in codes if (tmp_path / k / "failed.json").exists()] == ["fails"]
+    again = run_all([Run("fails", scene, TINY)], tmp_path, jobs=1,
+                    on_done=lambda r, s, reused: pytest.fail("a stored failure is not run") if not reused else None)
+    assert again["fails"]["error"] == "exit code 1: stop"
