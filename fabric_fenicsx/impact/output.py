@@ -53,6 +53,12 @@ OWNED_FILES = ("run.json", "history.csv", "summary.json", XDMF_NAME, DATA_NAME, 
 _QUAD_CYCLE = np.array([0, 1, 3, 2])  # DOLFINx tensor-product vertex order -> perimeter order
 
 
+def cell_corners(V, n_cells: int) -> np.ndarray:
+    """Local node indices of the first ``n_cells`` (owned) quadrilaterals of ``V``, each in
+    perimeter order (the order VTK and a polygon take), shape (n_cells, 4)."""
+    return V.dofmap.list.array.reshape(-1, 4)[:n_cells][:, _QUAD_CYCLE]
+
+
 def cell_average(values: np.ndarray, weights: np.ndarray, n_points_per_cell: int) -> np.ndarray:
     """Area-weighted average per cell of a point field (cell-major point layout)."""
     w = weights.reshape(-1, n_points_per_cell)
@@ -153,7 +159,7 @@ class XdmfSeries:
         self._cell_counts = np.array(comm.allgather(n_cells))
         self.n_nodes = int(self._node_counts.sum()) // 3
         self.n_cells = int(self._cell_counts.sum())
-        nodes = V.dofmap.list.array.reshape(-1, 4)[:n_cells][:, _QUAD_CYCLE]
+        nodes = cell_corners(V, n_cells)
         topology = imap.local_to_global(nodes.ravel()).astype(np.int64)
         coordinates = V.tabulate_dof_coordinates()[:n_nodes].ravel()
         self._data = self._xml = None
@@ -364,7 +370,7 @@ class ImpactOutput:
 
     def _pictures(self, summary: dict, live_cells: np.ndarray, point_fields: dict) -> None:
         m = self.m
-        dofs = m.V.dofmap.list.array.reshape(-1, 4)[:m.n_cells][:, _QUAD_CYCLE]
+        dofs = cell_corners(m.V, m.n_cells)
         X = m.V.tabulate_dof_coordinates()
         quads = X[dofs]  # (n_cells, 4, 3) reference corners in perimeter order
         values = {k: cell_average(point_fields[k], m.quadrature_weights_detJ, m.n_points_per_cell)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabric_fenicsx.impact.output import _QUAD_CYCLE
+from fabric_fenicsx.impact.output import cell_corners
 
 __all__ = ["FabricPictures", "SNAPSHOTS", "ANIMATION"]
 
@@ -30,7 +30,7 @@ class FabricPictures:
     def __init__(self, membrane, comm, animation_interval: float = 0.0):
         m = membrane
         self.m, self.comm = m, comm
-        self.nodes = m.V.dofmap.list.array.reshape(-1, 4)[:m.n_cells][:, _QUAD_CYCLE]
+        self.nodes = cell_corners(m.V, m.n_cells)
         self.X = m.V.tabulate_dof_coordinates()[:, :3].copy()
         self.X[:, 2] = 0.0
         self.snapshots: dict[str, tuple] = {}

@@ -17,15 +17,13 @@ import sys
 import time
 from pathlib import Path
 
-from fabric_fenicsx.studies.chapter4 import VELOCITIES, fmt
+from fabric_fenicsx.studies.chapter4 import THESIS as _CHAPTER4, VELOCITIES, fmt
 
-THESIS = {  # Table 4 of the thesis; None = "bounced back"
-    "residual_simulation": (None, 10.0, 32.6, 66.83, 110.0),
-    "residual_experiment": (None, 5.67, 29.99, 61.54, 97.99),
-    "absorbed_simulation": (21.69, 27.5, 41.18, 45.13, 59.3),
-    "absorbed_experiment": (21.69, 28.75, 44.22, 57.88, 105.66),
-    "deflection_simulation_mm": (50.91, 51.85, 51.75, 51.13, 51.25),
-}
+THESIS = {  # Table 4 of the thesis (chapter4.THESIS["Y90"]) under this module's names; None = "bounced back"
+    f"{name}_{kind}": _CHAPTER4["Y90"][key] for name, kind, key in (
+        ("residual", "simulation", "residual"), ("residual", "experiment", "residual_experiment"),
+        ("absorbed", "simulation", "absorbed"), ("absorbed", "experiment", "absorbed_experiment"),
+        ("deflection", "simulation_mm", "deflection_mm"))}
 
 COLUMNS = ("v0", "residual_velocity", "perforated", "absorbed_energy", "max_deflection_mm",
            "energy_error", "end_reason", "n_cells", "n_steps", "wall_time_s",
