@@ -14,6 +14,7 @@ import numpy as np
 
 from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
+from fabric_fenicsx.fem.tension_field import RelaxStats, relaxed_strains
 from fabric_fenicsx.surrogate.kernels import yarn_stress as yarn_stress_kernel
 from fabric_fenicsx.surrogate.table import lambda_tangent, symmetric_eigmax
 
@@ -73,6 +74,7 @@ class YarnStress:
         self.E1, self.E2 = np.zeros(n), np.zeros(n)
         self.E1_prev, self.E2_prev = self.E1, self.E2
         self.lam = np.ones((2, n))
+        self.E_relaxed = np.zeros((2, n))   # the tension field's strains of the last update
         self.P_el = np.zeros((2, n))
         self.P_v = np.zeros((2, n))
         self.alpha1, self.alpha2 = np.ones(n), np.ones(n)
@@ -82,17 +84,29 @@ class YarnStress:
         self.beyond_table = 0
         self.below_table = 0
         self.slack_tension = 0
+        self.relax_stats = RelaxStats()
         self.E_lo, self.E_hi = surrogate.E_table
 
     # ------------------------------------------------------------------ surrogate access
     def _clip(self, E: np.ndarray) -> np.ndarray:
         return np.clip(E, self.E_lo, self.E_hi)
 
-    def _intact(self, E1, E2):
-        """P1, P2 of intact yarns (alpha = 1: the surrogate's intact layer only), tension-only."""
+    def _relax(self, E1, E2, a1, a2, guess=None):
+        """The strains the unit cell is asked at: a compressed yarn whose unit-cell force is
+        compressive while the crossing yarn is stretched is taken at its force-free strain
+        (tension field, :mod:`fabric_fenicsx.fem.tension_field`); every other strain as given.
+        ``guess``: where the force-free searches start (the last step's relaxed strains)."""
+        c1, c2 = self._clip(E1), self._clip(E2)
+        r1, r2 = relaxed_strains(self.sur, c1, c2, a1, a2, self.relax_stats, guess)
+        return np.where(r1 != c1, r1, E1), np.where(r2 != c2, r2, E2)
+
+    def _intact(self, E1, E2, relaxed=None):
+        """P1, P2 of intact yarns (alpha = 1: the surrogate's intact layer only), tension-only,
+        at the tension field's strains ``relaxed`` = (R1, R2) of (E1, E2) (found when None)."""
         self.beyond_table += int(np.count_nonzero((E1 > self.E_hi) | (E2 > self.E_hi)))
         self.sur.stats.record(E1, E2)
         one = np.ones(E1.size)
+        E1, E2 = self._relax(E1, E2, one, one) if relaxed is None else relaxed
         vals = self.sur.lookup(self._clip(E1), self._clip(E2), one, one, ("P1", "P2"))
         return np.maximum(vals[:, 0], 0.0), np.maximum(vals[:, 1], 0.0)
 
@@ -105,9 +119,9 @@ class YarnStress:
         return slack1, slack2
 
     def _frozen_P(self, E1, E2, a1, a2):
-        """P1, P2 at frozen damage with the slack rule of :meth:`update`."""
+        """P1, P2 at frozen damage with the tension field and slack rules of :meth:`update`."""
         if self.damage:
-            P1, P2, _, _ = self.sur.evaluate(E1, E2, a1, a2)
+            P1, P2, _, _ = self.sur.evaluate(*self._relax(E1, E2, a1, a2), a1, a2)
         else:
             P1, P2 = self._intact(E1, E2)
         s1, s2 = self.slack(E1, E2)
@@ -147,8 +161,10 @@ class YarnStress:
         a1h, a2h = self.alpha1, self.alpha2
         e1, e2 = E1[sel], E2[sel]
         changed = np.zeros(0, np.int64)
+        r1, r2 = self._relax(e1, e2, a1h[sel], a2h[sel], self.E_relaxed[:, sel])
+        self.E_relaxed[0, sel], self.E_relaxed[1, sel] = r1, r2
         if self.damage:
-            p1, p2, b1, b2 = self.sur.update(e1, e2, a1h[sel], a2h[sel])
+            p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel])
             a1, a2, changed = np.empty(n), np.empty(n), np.empty(b1.size, np.int64)
             changed = changed[:yarn_stress_kernel.new_damage(a1h, a2h, self.live, b1, b2, a1, a2,
                                                              changed)]
@@ -160,7 +176,7 @@ class YarnStress:
                 self.damage_dissipation += float(self.w[c] @ (psi[:c.size] - psi[c.size:]))
         else:
             a1, a2 = a1h.copy(), a2h.copy()
-            p1, p2 = self._intact(e1, e2)
+            p1, p2 = self._intact(e1, e2, (r1, r2))
         # Wrinkled yarns carry nothing (see `slack` and the module docstring): below the
         # table a lookup at its end would freeze a positive crimp-interchange tension and pull
         # the cell together without bound; in biaxial compression the unit cell's branch has
@@ -214,14 +230,19 @@ class YarnStress:
         E1, E2 = self._clip(E1), self._clip(E2)
         a1 = self.alpha1[idx] if self.damage else np.ones(idx.size)
         a2 = self.alpha2[idx] if self.damage else np.ones(idx.size)
+        R1, R2 = self._relax(E1, E2, a1, a2)
+        wrinkled1, wrinkled2 = R1 != E1, R2 != E2
+        E1, E2 = R1, R2
         vals, d1, d2 = self.sur.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)
         d11, d12, d21, d22 = lambda_tangent(E1, E2, d1, d2)
         # Only a yarn that can carry tension has stiffness: not a broken one, not a slack one,
-        # and not a compressed one whose unit-cell P_i <= 0 (tension-only). The unit cell's
-        # compressive branch, never felt by the membrane, has jumps (tangents up to 4e8 N/m
-        # near E1 = E2 = -0.045, 60 x the straight yarn) that would otherwise collapse dt.
-        on1 = (a1 > 0) & ~slack1 & ((E1 >= 0) | (vals[:, 0] > 0))
-        on2 = (a2 > 0) & ~slack2 & ((E2 >= 0) | (vals[:, 1] > 0))
+        # not a wrinkled one (at its force-free strain P_i is zero up to round-off, which must
+        # not decide whether its stiffness counts: dt would jump with it), and not a compressed
+        # one whose unit-cell P_i <= 0 (tension-only). The unit cell's compressive branch, never
+        # felt by the membrane, has jumps (tangents up to 4e8 N/m near E1 = E2 = -0.045, 60 x
+        # the straight yarn) that would otherwise collapse dt.
+        on1 = (a1 > 0) & ~slack1 & ~wrinkled1 & ((E1 >= 0) | (vals[:, 0] > 0))
+        on2 = (a2 > 0) & ~slack2 & ~wrinkled2 & ((E2 >= 0) | (vals[:, 1] > 0))
         t11, t12 = np.where(on1, d11, 0.0), np.where(on1, d12, 0.0)
         t21, t22 = np.where(on2, d21, 0.0), np.where(on2, d22, 0.0)
         eig = symmetric_eigmax(t11, t12, t21, t22)

@@ -602,6 +602,10 @@ class ImpactSimulation:
                           "points_slack_with_table_tension": b.slack_tension,
                           "wave_modulus_bounded": comm.allreduce(self.material.modulus_bounded,
                                                                  op=MPI.SUM),
+                          "points_wrinkled": comm.allreduce(self.material.relax_stats.relaxed,
+                                                            op=MPI.SUM),
+                          "points_wrinkled_without_force_free_strain": comm.allreduce(
+                              self.material.relax_stats.no_root, op=MPI.SUM),
                           "range": self.surrogate.report_range() if self.rank0 else ""},
             "mesh": {"L_min": self.L_min, "kind": sc.mesh.kind, "element": sc.mesh.element,
                      "quadrature_degree": quadrature_degree(sc)},

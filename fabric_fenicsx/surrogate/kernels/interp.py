@@ -150,32 +150,112 @@ def lookup(E1, E2, a1, a2, table, spec, out, flag):
 def lookup_derivatives(E1, E2, a1, a2, table, spec, out, d1, d2, flag):
     """:func:`lookup` with the derivatives d/dE1, d/dE2 into ``d1``, ``d2`` (a broken yarn's
     quantities: 0). Apart from it: the extra arithmetic slows the value loop 2x."""
-    coefs, h, nq, broken, P = table[:2], table[7], table[11], table[12], table[13]
-    quantities, scaled = spec[0], spec[1]
-    PP = P * P
     for n in range(E1.size):
         x1, x2 = a1[n], a2[n]
         layer, k, w, a, b, i, j = _locate(E1[n], E2[n], x1, x2, table)
         if layer < 0:
             flag[n] = 2
             continue
-        coef = coefs[layer]
-        amax = max(x1, x2)
-        for c in range(quantities.size):
-            k0 = (k + quantities[c]) * PP
-            v, g1, g2 = _value_slopes(coef, k0, P, a, b)
-            if w > 0.0:
-                v1, h1, h2 = _value_slopes(coef, k0 + nq * PP, P, a, b)
-                v, g1, g2 = v + w * (v1 - v), g1 + w * (h1 - g1), g2 + w * (h2 - g2)
-            factor = 1.0
-            if scaled[c]:
-                factor = amax if amax > 0.0 else 0.0
-            dead = _dead(x1, x2, c, spec, broken)
-            if math.isnan(dead):
-                out[n, c], d1[n, c], d2[n, c] = v * factor, g1 * factor / h, g2 * factor / h
-            else:
-                out[n, c], d1[n, c], d2[n, c] = dead, 0.0, 0.0
+        coef = table[0] if layer == 0 else table[1]
+        for c in range(spec[0].size):
+            out[n, c], d1[n, c], d2[n, c] = _quantity_slopes(coef, table, spec, c, k, w, a, b,
+                                                             x1, x2)
         flag[n] = _risk(x1, x2, i, j, table)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _quantity_slopes(coef, table, spec, c, k, w, a, b, x1, x2):
+    """Quantity c of ``spec`` and its derivatives d/dE1, d/dE2 at a point located in the
+    layer whose coefficients are ``coef`` (:func:`_locate`)."""
+    h, nq, broken, P = table[7], table[11], table[12], table[13]
+    PP = P * P
+    dead = _dead(x1, x2, c, spec, broken)
+    if not math.isnan(dead):
+        return dead, 0.0, 0.0
+    k0 = (k + spec[0][c]) * PP
+    v, g1, g2 = _value_slopes(coef, k0, P, a, b)
+    if w > 0.0:
+        v1, h1, h2 = _value_slopes(coef, k0 + nq * PP, P, a, b)
+        v, g1, g2 = v + w * (v1 - v), g1 + w * (h1 - g1), g2 + w * (h2 - g2)
+    factor = 1.0
+    if spec[1][c]:
+        amax = max(x1, x2)
+        factor = amax if amax > 0.0 else 0.0
+    return v * factor, g1 * factor / h, g2 * factor / h
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _force_slope(yarn, e_other, x, a1, a2, table, spec):
+    """P of ``yarn`` (0 warp, 1 fill; ``spec`` its single quantity) and dP/dE of its own
+    strain x, the crossing yarn at e_other; ok False where a tile is not built."""
+    e1, e2 = (x, e_other) if yarn == 0 else (e_other, x)
+    layer, k, w, a, b, i, j = _locate(e1, e2, a1, a2, table)
+    if layer < 0:
+        return 0.0, 0.0, False
+    coef = table[0] if layer == 0 else table[1]
+    v, g1, g2 = _quantity_slopes(coef, table, spec, 0, k, w, a, b, a1, a2)
+    return v, (g1 if yarn == 0 else g2), True
+
+
+ROOT_FOUND, ROOT_NONE, ROOT_TENSION, ROOT_NEEDS_TILES = 0, 1, 3, 2
+"""Status of :func:`zero_force_strain` per point."""
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def zero_force_strain(yarn, E_other, lo, hi, guess, a1, a2, table, spec, tol, max_iter, out,
+                      status):
+    """Per point the strain x in [lo, hi] of ``yarn`` (0 warp, 1 fill) where its force P
+    (``spec``: that one quantity) is zero, the crossing yarn at E_other: Newton's method kept
+    inside the bracket, bisection where a step leaves it, until a step or the bracket is below
+    ``tol``; it starts from ``guess`` where that lies inside the bracket (the last step's root:
+    one or two Newton steps), else from hi. ``status``: ROOT_FOUND; ROOT_TENSION where P(lo) >=
+    0 (nothing to find, out = lo); ROOT_NONE where P(hi) < 0 too (out = lo); ROOT_NEEDS_TILES
+    where a tile on the way is not built (out not set)."""
+    for n in range(E_other.size):
+        e, x1, x2 = E_other[n], a1[n], a2[n]
+        left, right = lo[n], hi[n]
+        out[n] = left
+        g, d, ok = _force_slope(yarn, e, left, x1, x2, table, spec)
+        if not ok:
+            status[n] = ROOT_NEEDS_TILES
+            continue
+        if g >= 0.0:
+            status[n] = ROOT_TENSION
+            continue
+        # Newton from the guess (else from hi) inside [left, right]; P(right) >= 0 is checked
+        # only when a step would leave the bracket on that side (a good guess needs no check).
+        x = guess[n] if left < guess[n] < right else right
+        g, d, ok = _force_slope(yarn, e, x, x1, x2, table, spec)
+        right_known = False
+        status[n] = ROOT_FOUND
+        for _ in range(max_iter):
+            if not ok:
+                status[n] = ROOT_NEEDS_TILES
+                break
+            if g == 0.0:
+                break
+            if g < 0.0:
+                left = x
+            else:
+                right, right_known = x, True
+            step = x - g / d if d > 0.0 else math.nan
+            if not (left <= step <= right) and not right_known:
+                gr, _, ok = _force_slope(yarn, e, right, x1, x2, table, spec)
+                if not ok:
+                    status[n] = ROOT_NEEDS_TILES
+                    break
+                if gr < 0.0:
+                    status[n] = ROOT_NONE
+                    x = lo[n]
+                    break
+                right_known = True
+            new = step if left <= step <= right else 0.5 * (left + right)
+            if abs(new - x) <= tol or right - left <= tol:
+                x = new
+                break
+            x = new
+            g, d, ok = _force_slope(yarn, e, x, x1, x2, table, spec)
+        out[n] = x
 
 
 @njit(cache=True, nogil=True)
