@@ -237,7 +237,8 @@ def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall
                   "## The thesis's findings", "", "| finding | holds | the numbers |", "|---|---|---|"]
         for finding, holds, numbers in chapter4.checklist(results, waves):
             lines.append(f"| {finding} | {'-' if holds is None else ('yes' if holds else 'no')} | {numbers} |")
-        lines.append("")
+        lines += ["", "Where these numbers differ from the thesis's, and what is known of why: "
+                  "[validation_differences.md](validation_differences.md).", ""]
     return "\n".join(lines)
 
 
