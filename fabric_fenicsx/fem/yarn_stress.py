@@ -5,8 +5,9 @@ impact run. It keeps the damage history of every owned quadrature point (alpha1,
 Eq. 2-25) and turns the yarn strains of a step into the yarn stresses the membrane integrates:
 the surrogate's P_i (Eq. 2-31), asked at the tension field's strains (a compressed yarn wrinkles to
 its force-free strain, :mod:`fabric_fenicsx.fem.tension_field`), under the membrane's tension-only
-and slack rules, plus a stiffness-proportional viscous stress; it books the energy released by damage, the viscous
-work and the energy of removed points, and gives the wave modulus that sets the stable time step.
+and slack rules, plus a stiffness-proportional viscous stress; it books the energy released by
+damage, the viscous work and the energy of removed points, and gives the wave modulus that sets
+the stable time step.
 The modelling choices behind each rule are in docs/impact.md.
 """
 from __future__ import annotations
