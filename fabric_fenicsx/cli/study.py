@@ -2,8 +2,9 @@
 chapter 4 as studies (:mod:`fabric_fenicsx.studies.chapter4`).
 
 NAME: table4, table5, table6, friction, fillet, v50 or chapter4 (all of them, and the validation
-report). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time,
-each into OUT/runs/<run>; a run stored with the same settings and model version is reused, so
+report). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time
+(the four scenes' ballistic limits are bisected side by side, sharing them), each into
+OUT/runs/<run>; a run stored with the same settings and model version is reused, so
 an interrupted study resumes. ``--set`` applies to every run. Writes OUT/NAME.md and
 OUT/NAME.json; ``chapter4`` also writes the report ``--doc`` (default docs/validation.md).
 """
@@ -20,8 +21,6 @@ from pathlib import Path
 PROG = "fabric-fenicsx study"
 RUN_OUTPUT = ("output.xdmf_interval=0", "output.progress_interval=0")
 """Every study run writes its history, summary and pictures, but no XDMF (unless --set asks)."""
-V50_BRACKET = (20.0, 60.0)
-"""Where the ballistic-limit bisection starts (m/s); it widens the bracket if it must."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -88,11 +87,13 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {run.key}: {what}, residual {summary['residual_velocity']:.2f} m/s, absorbed "
                   f"{summary['absorbed_energy']:.2f} J ({summary['end_reason']})", flush=True)
 
-    results = run_all(runs, out / "runs", jobs=jobs, on_done=progress)
-    waves = _wave_speeds(overrides, out / "runs", progress) if args.name == "chapter4" else {}
+    wave_run = _wave_run(overrides) if args.name == "chapter4" else None
+    results = run_all(runs + [wave_run] * (wave_run is not None), out / "runs", jobs=jobs, on_done=progress)
+    waves = _wave_speeds(wave_run, results.pop(wave_run.key), out / "runs") if wave_run else {}
     limits = {}
     if args.name in ("v50", "chapter4"):
-        limits = _ballistic_limits(overrides, out / "runs", jobs, args.members or max(2, jobs), args.tol, progress)
+        limits = _ballistic_limits(overrides, results, out / "runs", jobs, args.members or max(2, jobs), args.tol,
+                                   progress)
     wall = time.perf_counter() - t0
     report = {"study": args.name, "overrides": list(args.overrides), "wall_time_s": wall,
               "runs": results, "v50": limits, "waves": waves}
@@ -114,17 +115,22 @@ def run(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _wave_speeds(overrides, runs_dir: Path, progress) -> dict:
+def _wave_run(overrides):
+    """One short XY0 run whose first stress wave :mod:`fabric_fenicsx.studies.waves` measures."""
+    from fabric_fenicsx.studies import chapter4, waves
+    from fabric_fenicsx.studies.runpool import Run
+
+    return Run("XY0-waves", str(chapter4.SCENE_DIR / chapter4.SCENES["XY0"]), (*overrides, *waves.RUN_SETTINGS))
+
+
+def _wave_speeds(run, done: dict, runs_dir: Path) -> dict:
     """The first stress wave's speed along warp and fill (:mod:`fabric_fenicsx.studies.waves`):
-    one short XY0 run, measured and expected."""
+    measured on the wave run ``done``, and expected from the unit cell."""
     from fabric_fenicsx.impact.scene import load_scene
     from fabric_fenicsx.impact.setup import build_fabric
-    from fabric_fenicsx.studies import chapter4, waves
-    from fabric_fenicsx.studies.runpool import Run, run_all
+    from fabric_fenicsx.studies import waves
     from fabric_fenicsx.surrogate.table import material_point
 
-    run = Run("XY0-waves", str(chapter4.SCENE_DIR / chapter4.SCENES["XY0"]), (*overrides, *waves.RUN_SETTINGS))
-    done = run_all([run], runs_dir, on_done=progress)[run.key]
     if "error" in done:
         return {"error": done["error"]}
     fabric = build_fabric(load_scene(run.scene, list(run.overrides)))
@@ -132,22 +138,34 @@ def _wave_speeds(overrides, runs_dir: Path, progress) -> dict:
             "wall_time_s": done.get("wall_time_s")}
 
 
-def _ballistic_limits(overrides, runs_dir: Path, jobs: int, members: int, tol: float, progress) -> dict:
-    """The ballistic limit of each scene: :func:`~fabric_fenicsx.studies.limit.bisect_limit`,
-    ``members`` runs per velocity (V0 changed by k x 1e-12)."""
-    from fabric_fenicsx.studies import chapter4
-    from fabric_fenicsx.studies.ensemble import member_velocity, offsets
-    from fabric_fenicsx.studies.limit import bisect_limit
-    from fabric_fenicsx.studies.runpool import Run, run_all
+def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, members: int, tol: float,
+                      progress) -> dict:
+    """The ballistic limit of each scene: :func:`~fabric_fenicsx.studies.limit.bisect_limit` from
+    :func:`~fabric_fenicsx.studies.chapter4.v50_start` (on the table runs in ``results``),
+    ``members`` runs per velocity (V0 changed by k x 1e-12); the four scenes side by side in
+    threads whose runs share ``jobs`` processes."""
+    import threading
 
-    limits = {}
-    for scene, file in chapter4.SCENES.items():
+    from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.ensemble import offsets
+    from fabric_fenicsx.studies.limit import bisect_limit
+    from fabric_fenicsx.studies.runpool import run_all
+
+    slots = threading.BoundedSemaphore(jobs)
+    limits, crashed = {}, {}
+
+    def guarded(scene):
+        try:
+            bisect(scene)
+        except BaseException as err:        # a bug, not a failed run: raised again below
+            crashed[scene] = err
+
+    def bisect(scene):
         summaries: list[dict] = []
 
-        def evaluate(v, scene=scene, file=file, summaries=summaries):
-            runs = [Run(f"{scene}-v50-v{v:.4f}-k{k}", str(chapter4.SCENE_DIR / file),
-                        (*overrides, f"projectile.velocity={member_velocity(v, k)!r}")) for k in offsets(members)]
-            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress)
+        def evaluate(v):
+            runs = [chapter4.v50_run(scene, v, k, overrides) for k in offsets(members)]
+            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress, slots=slots)
             bad = [k for k, s in done.items() if "error" in s]
             if bad:
                 raise RuntimeError(f"v50 of {scene}: run {bad[0]} failed ({done[bad[0]]['error']}); "
@@ -155,17 +173,27 @@ def _ballistic_limits(overrides, runs_dir: Path, jobs: int, members: int, tol: f
             summaries.extend(done.values())
             return [bool(s["perforated"]) for s in done.values()]
 
-        print(f"{PROG} v50: {scene}, bisection from {V50_BRACKET} m/s to {tol} m/s, {members} runs a velocity",
+        start = chapter4.v50_start(scene, results)
+        print(f"{PROG} v50: {scene}, bisection from {start} m/s to {tol} m/s, {members} runs a velocity",
               flush=True)
         try:
-            r = bisect_limit(evaluate, *V50_BRACKET, tol=tol)
-        except RuntimeError as err:         # a failed run: report it, go on with the next scene
+            r = bisect_limit(evaluate, *start, tol=tol)
+        except RuntimeError as err:         # a failed run: report it; the other scenes go on
             print(f"{PROG} v50: {err}", file=sys.stderr, flush=True)
-            limits[scene] = {"error": str(err), "members": members}
-            continue
-        limits[scene] = {**r, "members": members, "summaries": summaries}
+            limits[scene] = {"error": str(err), "start": start, "members": members}
+            return
+        limits[scene] = {**r, "start": start, "members": members, "summaries": summaries}
         print(f"{PROG} v50: {scene}: limit {r['limit']} m/s, band {r['band']}", flush=True)
-    return limits
+
+    threads = [threading.Thread(target=guarded, args=(scene,), name=f"v50-{scene}", daemon=True)
+               for scene in chapter4.SCENES]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for scene, err in crashed.items():
+        raise RuntimeError(f"{PROG} v50: the bisection of {scene} stopped") from err
+    return {scene: limits[scene] for scene in chapter4.SCENES}
 
 
 def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall: float, out: Path) -> str:
@@ -213,19 +241,23 @@ def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall
                   "Bisection between a velocity the fabric holds and one it lets through, several runs a "
                   "velocity (the impact velocity changed by k x 1e-12 of itself): the band runs from the "
                   "highest velocity at which every run held to the lowest at which every run perforated, "
-                  "each edge bisected to the tolerance; the limit is its midpoint. The thesis and the "
+                  "each edge bisected to the tolerance; the limit is its midpoint. A scene's bisection starts "
+                  "from the tightest bracket its table runs give (the highest table velocity up to which every "
+                  "table run held, and the next; the table's run is the first member there), else from "
+                  f"{chapter4.V50_BRACKET[0]:g}-{chapter4.V50_BRACKET[1]:g} m/s. The thesis and the "
                   "experiment put Y90's limit between 34.5 and 39.78 m/s.", "",
-                  "| scene | limit (m/s) | band (m/s) | width (m/s) | velocities tried: perforated runs |",
-                  "|---|---|---|---|---|"]
+                  "| scene | limit (m/s) | band (m/s) | width (m/s) | start (m/s) | velocities tried: perforated runs |",
+                  "|---|---|---|---|---|---|"]
         for scene, r in limits.items():
             if "error" in r:
-                lines.append(f"| {scene} | not found: a run failed ({_short(r['error'])}) | | | |")
+                lines.append(f"| {scene} | not found: a run failed ({_short(r['error'])}) | | | | |")
                 continue
             lo, hi = r["band"]
             width = f"{hi - lo:.2f}" if lo is not None and hi is not None else "-"
             tries = ", ".join(f"{v:.2f}: {sum(o)}/{len(o)}" for v, o in r["tries"])
             lim = f"{r['limit']:.2f}" if r["limit"] is not None else "not found"
-            lines.append(f"| {scene} | {lim} | {lo} - {hi} | {width} | {tries} |")
+            start = " - ".join(f"{v:g}" for v in r["start"])
+            lines.append(f"| {scene} | {lim} | {lo} - {hi} | {width} | {start} | {tries} |")
         lines += ["", "Every run of a scene at the velocities of its table and of the bisection together "
                   "(the velocities where at least one run perforated and where at least one held):", ""]
         for scene in limits:

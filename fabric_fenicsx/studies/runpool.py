@@ -50,9 +50,12 @@ def _stored(run: Run, folder: Path) -> dict | None:
     return load_if_same(folder / "summary.json", settings) or load_if_same(folder / "failed.json", settings)
 
 
-def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, reuse: bool = True) -> dict:
+def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, reuse: bool = True,
+            slots=None) -> dict:
     """Run (or, with ``reuse``, take the stored result of) every run, ``jobs`` processes at a
-    time; ``on_done(run, summary, reused)`` is called as each one ends. Returns
+    time; ``on_done(run, summary, reused)`` is called as each one ends. ``slots``: a
+    ``threading.Semaphore`` shared by calls in other threads, of which every process holds one
+    while it runs (so that concurrent calls together keep to the cores). Returns
     ``{key: summary}`` (a failed run: ``{"error": ...}``)."""
     out_dir = Path(out_dir)
     keys = [r.key for r in runs]
@@ -71,19 +74,27 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
     running: dict = {}
     env = dict(os.environ, OMP_NUM_THREADS="1")
     while pending or running:
-        while pending and len(running) < max(1, jobs):
+        while pending and len(running) < max(1, jobs) and (slots is None or slots.acquire(blocking=False)):
             run = pending.pop(0)
             folder = out_dir / run.key
             folder.mkdir(parents=True, exist_ok=True)
             (folder / "summary.json").unlink(missing_ok=True)   # never read an older run's
             (folder / "failed.json").unlink(missing_ok=True)
             log = open(folder / "run.log", "w")
-            running[run.key] = (subprocess.Popen(_command(run, folder), stdout=log, stderr=subprocess.STDOUT,
-                                                 env=env), run, folder, log)
+            try:
+                proc = subprocess.Popen(_command(run, folder), stdout=log, stderr=subprocess.STDOUT, env=env)
+            except BaseException:
+                log.close()
+                if slots is not None:
+                    slots.release()
+                raise
+            running[run.key] = (proc, run, folder, log)
         time.sleep(0.2)
         for key in [k for k, (p, *_) in running.items() if p.poll() is not None]:
             proc, run, folder, log = running.pop(key)
             log.close()
+            if slots is not None:
+                slots.release()
             try:
                 summary = json.loads((folder / "summary.json").read_text())
                 if proc.returncode != 0:

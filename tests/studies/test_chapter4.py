@@ -51,9 +51,62 @@ def test_every_study_runs_what_the_thesis_ran_and_shares_runs():
     assert "Y90-v57.3" in keys and "XY0-v57.3-mu2" in keys and "Y90-v57.3-fillet0.8mm" in keys
     run = {r.key: r for r in chapter4.plan("chapter4", ("run.t_end=1e-3",))}["XY0-v57.3-mu0.1"]
     assert run.overrides[0] == "run.t_end=1e-3" and "projectile.friction=0.1" in run.overrides
-    assert chapter4.plan("v50") == []
+    v50 = [r.key for r in chapter4.plan("v50")]
+    assert v50 == [f"{s}-v{v}" for s in chapter4.SCENES for v in (34.5, 39.78)]
+    assert set(v50) <= set(keys)          # chapter4 makes them once, for the tables
     with pytest.raises(ValueError, match="unknown study"):
         chapter4.plan("table7")
+
+
+def test_the_bisection_starts_from_the_tightest_bracket_the_table_runs_give():
+    def runs(*outcomes, scene="XY0"):
+        return {chapter4.run_key(scene, v): o if isinstance(o, dict) else {"perforated": o}
+                for v, o in zip(chapter4.VELOCITIES, outcomes)}
+
+    assert chapter4.v50_start("XY0", runs(False, True, True)) == (34.5, 39.78)
+    assert chapter4.v50_start("XY0", runs(False, False, True)) == (39.78, 57.3)
+    assert chapter4.v50_start("XY0", runs(False, False, False, False, False)) == chapter4.V50_BRACKET
+    assert chapter4.v50_start("XY0", runs(True, False, True)) == chapter4.V50_BRACKET   # no hold below
+    assert chapter4.v50_start("XY0", runs(False)) == chapter4.V50_BRACKET               # 39.78 not run
+    assert chapter4.v50_start("XY0", runs(False, {"error": "x"}, True)) == chapter4.V50_BRACKET
+    assert chapter4.v50_start("Y90", runs(False, True)) == chapter4.V50_BRACKET          # another scene's
+    assert chapter4.v50_start("XY0", {}, default=(1.0, 2.0)) == (1.0, 2.0)
+    first = chapter4.v50_run("XY0", 34.5, 0, ("run.t_end=1e-3",))
+    table = {r.key: r for r in chapter4.plan("table5", ("run.t_end=1e-3",))}["XY0-v34.5"]
+    assert first == table
+    other = chapter4.v50_run("XY0", 34.5, 1, ("run.t_end=1e-3",))
+    assert other.key == "XY0-v50-v34.5000-k1" and other.overrides[-1] == f"projectile.velocity={34.5 * (1 + 1e-12)!r}"
+    assert chapter4.v50_run("XY0", 37.14, 0).key == "XY0-v50-v37.1400-k0"
+
+
+def test_concurrent_studies_share_the_processes_they_are_given(tmp_path, monkeypatch):
+    """Two threads, each running three stand-in runs two at a time, with two slots between them:
+    never more than two processes at once (without the slots, up to four)."""
+    import threading
+
+    from fabric_fenicsx.studies import runpool
+
+    monkeypatch.setattr(runpool, "_command", lambda run, out: [sys.executable, "-c", (
+        "import json, time; t0 = time.time(); time.sleep(0.6); "
+        f"open({str(out / 'summary.json')!r}, 'w').write(json.dumps(dict(start=t0, end=time.time())))")])
+    monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
+    scene = str(chapter4.SCENE_DIR / "y90.toml")
+    slots = threading.BoundedSemaphore(2)
+    done = {}
+
+    def study(name):
+        done.update(run_all([Run(f"{name}{i}", scene, TINY) for i in range(3)], tmp_path, jobs=2, slots=slots))
+
+    threads = [threading.Thread(target=study, args=(name,)) for name in "ab"]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(done) == ["a0", "a1", "a2", "b0", "b1", "b2"]
+    events = sorted([(s["start"], 1) for s in done.values()] + [(s["end"], -1) for s in done.values()])
+    running = [sum(e for _, e in events[:i + 1]) for i in range(len(events))]
+    assert max(running) == 2
+    assert slots.acquire(blocking=False) and slots.acquire(blocking=False)   # every slot given back
 
 
 def _summary(absorbed, peak=0.03, reach=0.02):
@@ -138,18 +191,25 @@ def test_the_ballistic_limit_study_bisects_each_scene_on_its_runs(tmp_path, monk
         return [sys.executable, "-c", f"import json; open({str(out / 'summary.json')!r}, 'w').write({json.dumps(summary)!r})"]
     monkeypatch.setattr(runpool, "_command", command)
     monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
-    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 0
+    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 1   # XY45's runs failed
     limits = json.loads((tmp_path / "v50.json").read_text())["v50"]
     for scene in ("Y90", "XY0"):
         lo, hi = limits[scene]["band"]
         assert lo <= 37.0 < hi and hi - lo <= 0.5
+        assert limits[scene]["start"] == [34.5, 39.78]        # the table runs at 34.5 and 39.78 bracket it
+        tried = [v for v, _ in limits[scene]["tries"]]
+        assert min(tried) == 34.5 and max(tried) == 39.78 and len(tried) == 6   # 5.28 m/s halved 4 times
+        assert not (tmp_path / "runs" / f"{scene}-v50-v34.5000-k0").exists()   # member 0 is the table's run
+        assert (tmp_path / "runs" / f"{scene}-v50-v34.5000-k1" / "summary.json").exists()
+    assert limits["Y0"]["start"] == limits["XY45"]["start"] == list(chapter4.V50_BRACKET)  # held at both; failed
     lo, hi = limits["Y0"]["band"]
     assert 40.5 <= lo <= 41.0 and 42.0 <= hi <= 42.5
     assert "stand-in failure" in limits["XY45"]["error"]
     md = (tmp_path / "v50.md").read_text()
     xy45 = [line for line in md.splitlines() if line.startswith("| XY45 |")]
     assert len(xy45) == 1 and "not found: a run failed" in xy45[0] and "stand-in failure" in xy45[0]
-    assert "| Y90 | 37." in md
+    y90 = [line for line in md.splitlines() if line.startswith("| Y90 |")]
+    assert len(y90) == 1 and y90[0].startswith(f"| Y90 | {limits['Y90']['limit']:.2f} |") and "| 34.5 - 39.78 |" in y90[0]
     assert "- Y0: runs perforated from 41" in md
     # the failure is stored with its settings and model version and reported again, not rerun
     failed = tmp_path / "runs" / "XY45-v50-v20.0000-k0" / "failed.json"
@@ -157,7 +217,7 @@ def test_the_ballistic_limit_study_bisects_each_scene_on_its_runs(tmp_path, monk
     monkeypatch.undo()
     monkeypatch.setattr(runpool, "_command", lambda run, out: (_ for _ in ()).throw(AssertionError(run.key))
                         if run.key.startswith("XY45") else command(run, out))
-    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 0
+    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 1
 
 
 def test_a_failure_is_stored_but_a_killed_or_interrupted_run_is_not(tmp_path, monkeypatch):
