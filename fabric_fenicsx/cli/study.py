@@ -170,7 +170,7 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
             if bad:
                 raise RuntimeError(f"v50 of {scene}: run {bad[0]} failed ({done[bad[0]]['error']}); "
                                    f"see {runs_dir / bad[0] / 'run.log'}")
-            summaries.extend(done.values())
+            summaries.extend(s for k, s in done.items() if k not in results)   # not the table's runs again
             return [bool(s["perforated"]) for s in done.values()]
 
         start = chapter4.v50_start(scene, results)

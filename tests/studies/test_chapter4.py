@@ -81,7 +81,7 @@ def test_the_bisection_starts_from_the_tightest_bracket_the_table_runs_give():
 
 def test_concurrent_studies_share_the_processes_they_are_given(tmp_path, monkeypatch):
     """Two threads, each running three stand-in runs two at a time, with two slots between them:
-    never more than two processes at once (without the slots, up to four)."""
+    never more than two processes at once (without the slots, up to four), every slot given back."""
     import threading
 
     from fabric_fenicsx.studies import runpool
@@ -105,7 +105,7 @@ def test_concurrent_studies_share_the_processes_they_are_given(tmp_path, monkeyp
     assert sorted(done) == ["a0", "a1", "a2", "b0", "b1", "b2"]
     events = sorted([(s["start"], 1) for s in done.values()] + [(s["end"], -1) for s in done.values()])
     running = [sum(e for _, e in events[:i + 1]) for i in range(len(events))]
-    assert max(running) == 2
+    assert max(running) <= 2
     assert slots.acquire(blocking=False) and slots.acquire(blocking=False)   # every slot given back
 
 
