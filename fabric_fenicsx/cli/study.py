@@ -23,6 +23,13 @@ RUN_OUTPUT = ("output.xdmf_interval=0", "output.progress_interval=0")
 """Every study run writes its history, summary and pictures, but no XDMF (unless --set asks)."""
 
 
+def _say(line: str, stream=None) -> None:
+    """One line at once (the ballistic limits' threads print side by side), flushed."""
+    stream = stream or sys.stdout
+    stream.write(line + "\n")
+    stream.flush()
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from fabric_fenicsx.studies.chapter4 import STUDIES
 
@@ -82,10 +89,10 @@ def run(args: argparse.Namespace) -> int:
     def progress(run, summary, reused):
         what = "stored" if reused else "done"
         if "error" in summary:
-            print(f"  {run.key}: failed ({summary['error']})", flush=True)
+            _say(f"  {run.key}: failed ({summary['error']})")
         else:
-            print(f"  {run.key}: {what}, residual {summary['residual_velocity']:.2f} m/s, absorbed "
-                  f"{summary['absorbed_energy']:.2f} J ({summary['end_reason']})", flush=True)
+            _say(f"  {run.key}: {what}, residual {summary['residual_velocity']:.2f} m/s, absorbed "
+                 f"{summary['absorbed_energy']:.2f} J ({summary['end_reason']})")
 
     wave_run = _wave_run(overrides) if args.name == "chapter4" else None
     results = run_all(runs + [wave_run] * (wave_run is not None), out / "runs", jobs=jobs, on_done=progress)
@@ -174,16 +181,15 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
             return [bool(s["perforated"]) for s in done.values()]
 
         start = chapter4.v50_start(scene, results)
-        print(f"{PROG} v50: {scene}, bisection from {start} m/s to {tol} m/s, {members} runs a velocity",
-              flush=True)
+        _say(f"{PROG} v50: {scene}, bisection from {start} m/s to {tol} m/s, {members} runs a velocity")
         try:
             r = bisect_limit(evaluate, *start, tol=tol)
         except RuntimeError as err:         # a failed run: report it; the other scenes go on
-            print(f"{PROG} v50: {err}", file=sys.stderr, flush=True)
+            _say(f"{PROG} v50: {err}", sys.stderr)
             limits[scene] = {"error": str(err), "start": start, "members": members}
             return
         limits[scene] = {**r, "start": start, "members": members, "summaries": summaries}
-        print(f"{PROG} v50: {scene}: limit {r['limit']} m/s, band {r['band']}", flush=True)
+        _say(f"{PROG} v50: {scene}: limit {r['limit']} m/s, band {r['band']}")
 
     threads = [threading.Thread(target=guarded, args=(scene,), name=f"v50-{scene}", daemon=True)
                for scene in chapter4.SCENES]
