@@ -226,7 +226,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "run": {
         "t_end": Key(3.0e-3, number(0.0, lo_open=True, unit="s"),
-                     "time limit (the run also ends on perforation or rebound)"),
+                     "time limit (the run also ends on perforation or rebound, and with stop_when_held)"),
         "dt_safety": Key(0.8, number(0.0, 1.0, lo_open=True),
                          "time step = dt_safety x stable limit (smallest cell, largest wave speed)"),
         "dt_check_interval": Key(10, integer(1), "steps between re-checks of the stable time step"),
@@ -237,6 +237,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "release_time": Key(20.0e-6, number(0.0, lo_open=True, unit="s"),
                             "time without contact after which a perforation or rebound is final"),
         "max_steps": Key(0, integer(0), "stop after this many steps (0 = no limit)"),
+        "stop_when_held": Key(False, boolean,
+                              "end the run as 'held' as soon as the fabric has brought the projectile to rest "
+                              "and it turns back, without following the rebound (a ballistic limit needs only "
+                              "the outcome)"),
         "energy_tolerance": Key(0.05, number(0.0, lo_open=True),
                                 "a relative energy-balance error above this stops the run (damage on or off)"),
     },

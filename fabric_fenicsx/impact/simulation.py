@@ -413,6 +413,8 @@ class ImpactSimulation:
             return "rebound"
         if released and ledger.n_front == 0:
             return "perforated"
+        if run.stop_when_held and ledger.t_touch is not None and self.state.vz > 0:
+            return "held"
         if t >= run.t_end:
             return "time_limit"
         if run.max_steps and loop.step >= run.max_steps:
@@ -421,8 +423,8 @@ class ImpactSimulation:
 
     # ------------------------------------------------------------------ run
     def run(self) -> dict:
-        """Integrate until perforation, rebound or the time limit; write the output; return the
-        summary (identical on every rank)."""
+        """Integrate until perforation, rebound, the projectile held (``run.stop_when_held``) or the
+        time limit; write the output; return the summary (identical on every rank)."""
         sc, cd, clock = self.scene, self.cd, self.clock
         t_wall0 = time.perf_counter()
         loop = _Loop(dt=self.dt, dt_shown=self.dt, z_prev=self.state.z, last_progress=t_wall0,
@@ -543,7 +545,7 @@ class ImpactSimulation:
         sc, b, cd, comm = self.scene, self.ledger, self.cd, self.comm
         v0 = sc.projectile.velocity
         v_res = -self.state.vz
-        perforated = bool(end_reason == "perforated" or (end_reason != "rebound" and b.n_front == 0
+        perforated = bool(end_reason == "perforated" or (end_reason not in ("rebound", "held") and b.n_front == 0
                                                           and self.state.vz < 0 and b.t_touch is not None))
         W_el = energy.internal - b.viscous
         self._frame(cd.time)

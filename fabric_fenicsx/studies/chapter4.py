@@ -100,14 +100,15 @@ def plan(name: str, overrides=()) -> list[Run]:
 
 def v50_run(scene: str, v: float, k: int, overrides=()) -> Run:
     """Member ``k`` of the ballistic-limit runs of ``scene`` at ``v`` (m/s), its impact velocity
-    v (1 + k 1e-12) (:func:`~fabric_fenicsx.studies.ensemble.member_velocity`); member 0 at a
-    table velocity is the table's run (the same settings)."""
+    v (1 + k 1e-12) (:func:`~fabric_fenicsx.studies.ensemble.member_velocity`), ended as soon
+    as the fabric has stopped the projectile (``run.stop_when_held``: only the outcome counts);
+    member 0 at a table velocity is the table's run (the same settings, run to its end)."""
     from fabric_fenicsx.studies.ensemble import member_velocity
 
     if k == 0 and v in VELOCITIES:
         return _run(scene, v, overrides)
     return Run(f"{scene}-v50-v{v:.4f}-k{k}", str(SCENE_DIR / SCENES[scene]),
-               (*overrides, f"projectile.velocity={member_velocity(v, k)!r}"))
+               (*overrides, "run.stop_when_held=true", f"projectile.velocity={member_velocity(v, k)!r}"))
 
 
 def v50_start(scene: str, results: dict, default: tuple = V50_BRACKET) -> tuple[float, float]:

@@ -432,6 +432,27 @@ def test_rebound_ends_the_run_with_a_negative_residual_velocity(tmp_path):
     assert s["energy_error"] < 0.01
 
 
+def test_a_run_stopped_when_held_ends_where_the_projectile_turns_back(tmp_path):
+    """run.stop_when_held: the same light projectile as above ends as 'held' at the first step it
+    moves back, not perforated, with the full run's history up to there (the option changes
+    when the run ends, nothing before)."""
+    settings = ["run.t_end=2e-3", "projectile.mass=0.002", "mesh.n=10", "output.history_interval=1e-7",
+                "output.png=false"]
+    full = run_impact(tiny(settings), tmp_path / "full", verbose=False)
+    held = run_impact(tiny([*settings, "run.stop_when_held=true"]), tmp_path / "held", verbose=False)
+    assert full["end_reason"] == "rebound" and held["end_reason"] == "held" and not held["perforated"]
+    rows = {}
+    for name in ("full", "held"):
+        with open(tmp_path / name / "history.csv") as f:
+            rows[name] = [(float(r["time"]), float(r["projectile_velocity"])) for r in csv.DictReader(f)]
+    n = len(rows["held"])
+    assert n == held["n_steps"] < full["n_steps"]
+    assert rows["held"] == rows["full"][:n]
+    v = [v for _, v in rows["full"]]
+    turn = next(i for i, x in enumerate(v) if x < 0)       # history: positive = into the fabric
+    assert abs(n - 1 - turn) <= 1 and held["residual_velocity"] <= 0.0
+
+
 def test_trouble_stops_with_step_place_and_fix(tmp_path):
     with pytest.raises(ImpactError, match=r"(?s)step \d+, t = .*energy balance error.*reference \(x, y\)"
                                           r".*Likely fixes"):

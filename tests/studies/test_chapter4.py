@@ -76,6 +76,7 @@ def test_the_bisection_starts_from_the_tightest_bracket_the_table_runs_give():
     assert first == table
     other = chapter4.v50_run("XY0", 34.5, 1, ("run.t_end=1e-3",))
     assert other.key == "XY0-v50-v34.5000-k1" and other.overrides[-1] == f"projectile.velocity={34.5 * (1 + 1e-12)!r}"
+    assert "run.stop_when_held=true" in other.overrides and "run.stop_when_held=true" not in first.overrides
     assert chapter4.v50_run("XY0", 37.14, 0).key == "XY0-v50-v37.1400-k0"
 
 
