@@ -263,7 +263,8 @@ def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall
             tries = ", ".join(f"{v:.2f}: {sum(o)}/{len(o)}" for v, o in r["tries"])
             lim = f"{r['limit']:.2f}" if r["limit"] is not None else "not found"
             start = " - ".join(f"{v:g}" for v in r["start"])
-            lines.append(f"| {scene} | {lim} | {lo} - {hi} | {width} | {start} | {tries} |")
+            band = " - ".join("-" if x is None else f"{x:.6g}" for x in (lo, hi))
+            lines.append(f"| {scene} | {lim} | {band} | {width} | {start} | {tries} |")
         lines += ["", "Every run of a scene at the velocities of its table and of the bisection together "
                   "(the velocities where at least one run perforated and where at least one held):", ""]
         for scene in limits:
