@@ -204,7 +204,7 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
 
 def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall: float, out: Path) -> str:
     from fabric_fenicsx.studies import chapter4
-    from fabric_fenicsx.studies.provenance import code_fingerprint
+    from fabric_fenicsx.provenance import code_fingerprint
 
     fp = code_fingerprint()
     names = [s for s in chapter4.STUDIES if s != "chapter4"] if name == "chapter4" else [name]

@@ -35,7 +35,7 @@ from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, bu
 from fabric_fenicsx.impact.timestep import (DtChange, check_due, damping_coefficient, highest_frequency,
                                             stable_dt, unit_cell_frequency)
 from fabric_fenicsx.material.unitcell import UnitCellError
-from fabric_fenicsx.studies.provenance import code_fingerprint
+from fabric_fenicsx.provenance import code_fingerprint
 from fabric_fenicsx.surrogate.table import SurrogateError
 
 __all__ = ["ImpactError", "ImpactSimulation", "run_impact", "HISTORY_COLUMNS"]

@@ -1,6 +1,7 @@
 """Studies built on the model: verification (Smith's transverse impact, convergence, stability
 on stiff and extreme cases, the surrogate's accuracy), validation (the thesis's Table 4) and the
-static material-point scenes of chapter 3, with provenance of every stored run.
+static material-point scenes of chapter 3. Stored runs are reused by their provenance
+(:mod:`fabric_fenicsx.provenance`, part of the model).
 
 - :mod:`.static`: the material-point scenes of chapter 3 (no DOLFINx);
 - :mod:`.smith`: Smith's theory of a transverse impact on a yarn, and the membrane against it;
@@ -8,7 +9,6 @@ static material-point scenes of chapter 3, with provenance of every stored run.
 - :mod:`.stability`: the impact driver on stiff and extreme cases;
 - :mod:`.table4`: Y90 at the five velocities of Table 4;
 - :mod:`.surrogate_report`: the surrogate against the unit cell;
-- :mod:`.provenance`: model version and reuse of stored runs.
 
 Names are re-exported lazily (the impact studies load DOLFINx only when they run).
 """
@@ -17,8 +17,7 @@ from fabric_fenicsx._lazy import lazy_exports
 _EXPORTS = {
     "run_scenario": "static", "UnitCellPoint": "static", "SCENARIOS": "static",
     "smith_theory": "smith", "simulate_transverse_impact": "smith",
-    "run_report": "surrogate_report", "model_version": "provenance", "code_fingerprint": "provenance",
-    "load_if_same": "provenance",
+    "run_report": "surrogate_report",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

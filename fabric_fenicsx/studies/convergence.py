@@ -201,7 +201,7 @@ def _history_max_deflection(folder: Path) -> float:
 
 def _load_done(folder: Path, settings: dict) -> dict | None:
     """The recorded outcome of a finished run with the same settings and model version, else None."""
-    from fabric_fenicsx.studies.provenance import load_if_same
+    from fabric_fenicsx.provenance import load_if_same
     timing = folder / "timing.json"
     for name in ("summary.json", "error.json"):
         data = load_if_same(folder / name, settings)
@@ -240,7 +240,7 @@ def run_one(case: str, h_centre: float, dt_safety: float, runs_dir: Path, rerun:
     """One impact run into its own folder, or its recorded outcome if it was run before with
     the same settings. Wall and CPU (process) time of the whole call are kept in timing.json."""
     from fabric_fenicsx.impact.simulation import ImpactError, run_impact
-    from fabric_fenicsx.studies.provenance import code_fingerprint
+    from fabric_fenicsx.provenance import code_fingerprint
 
     scene = scene_for(case, h_centre, dt_safety, perturbation=perturbation)
     settings = scene.to_dict()

@@ -17,7 +17,7 @@ import numpy as np
 
 from fabric_fenicsx.studies.convergence import (CASES, DEFAULT_SAFETY, DT_MESH_MM, ORDER_RANGE, QUANTITIES, SCENE,
                                         RunRecord, ensemble_recommendation, recommend, scatter_spread)
-from fabric_fenicsx.studies.provenance import git_head
+from fabric_fenicsx.provenance import git_head
 
 
 def _fmt(x, spec: str = ".4g") -> str:
@@ -289,7 +289,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
         L += ["**Quick smoke version (`--quick`): tiny ladders, not a convergence study.**", ""]
     L += ["Re-running the command reuses every impact run whose folder under "
           f"`{_rel(out / 'runs', doc)}` holds a `summary.json` (or a recorded `error.json`) with the same "
-          "scene settings and model version (`fabric_fenicsx.studies.provenance`), and the stored unit-cell ladder (`unitcell.json`) if its element counts and "
+          "scene settings and model version (`fabric_fenicsx.provenance`), and the stored unit-cell ladder (`unitcell.json`) if its element counts and "
           "states are the same; `--rerun` computes everything again. Tables as CSV: "
           f"`{_rel(out, doc)}/*.csv`.", ""]
     sections = []
@@ -330,7 +330,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
 
 def _code_note(recs) -> list[str]:
     """Which code the runs were made with: a run is reused only with the same settings and
-    model version (`fabric_fenicsx.studies.provenance`), so a report normally shows one version."""
+    model version (`fabric_fenicsx.provenance`), so a report normally shows one version."""
     versions: dict[str, list[str]] = {}
     for r in recs:
         versions.setdefault(r.values.get("model_version", "?"), []).append(Path(r.folder).name)

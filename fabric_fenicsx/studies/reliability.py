@@ -28,7 +28,7 @@ One command writes the whole report (:data:`CANONICAL_COMMAND`):
   module exists.
 
 Each section's numbers are kept in ``OUT/reliability.json`` and reused when asked again with
-the same settings by the same code (:func:`fabric_fenicsx.studies.provenance.load_if_same`);
+the same settings by the same code (:func:`fabric_fenicsx.provenance.load_if_same`);
 ``--rerun`` recomputes them. ``--skip-impact`` leaves the impact runs out (their section then
 shows what is stored).
 """
@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabric_fenicsx.studies.provenance import code_fingerprint, model_version
+from fabric_fenicsx.provenance import code_fingerprint, model_version
 
 __all__ = ["CANONICAL_COMMAND", "BOUNDS", "IMPACT_VELOCITIES", "sample_states", "build_tables",
            "fuzz", "near_zero_damage", "impact_run", "faults_sections", "write_report", "main"]

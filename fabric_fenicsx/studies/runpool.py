@@ -1,6 +1,6 @@
 """Independent impact runs of a study, ``jobs`` at a time, each a ``fabric-fenicsx impact``
 process of its own; a run whose summary.json is stored with the same settings and model version
-(:mod:`fabric_fenicsx.studies.provenance`) is reused, not run again, so an interrupted study
+(:mod:`fabric_fenicsx.provenance`) is reused, not run again, so an interrupted study
 resumes where it stopped; so is a run that failed (failed.json: its error, settings and model
 version), which would fail the same way again (a run killed or interrupted is run again).
 
@@ -44,7 +44,7 @@ def _settings(run: Run) -> dict:
 def _stored(run: Run, folder: Path) -> dict | None:
     """The run's stored summary, or its stored failure (failed.json: the same settings and model
     version fail the same way), or None."""
-    from fabric_fenicsx.studies.provenance import load_if_same
+    from fabric_fenicsx.provenance import load_if_same
 
     settings = _settings(run)
     return load_if_same(folder / "summary.json", settings) or load_if_same(folder / "failed.json", settings)
@@ -113,7 +113,7 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
 def _record_failure(run: Run, folder: Path, summary: dict) -> None:
     """failed.json beside the run's log: its error, settings and model version, so that the
     study reports it again instead of repeating a run that fails the same way."""
-    from fabric_fenicsx.studies.provenance import model_version
+    from fabric_fenicsx.provenance import model_version
 
     try:
         settings = _settings(run)

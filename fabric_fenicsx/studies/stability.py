@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabric_fenicsx.studies.provenance import code_fingerprint, load_if_same
+from fabric_fenicsx.provenance import code_fingerprint, load_if_same
 
 __all__ = ["Case", "CASES", "BASE_SCENE", "BASE_OVERRIDES", "ENERGY_LIMIT", "scaled_stiffness",
            "with_crimp", "make_fabric", "case_settings", "run_case", "assess", "run_study",

@@ -34,7 +34,7 @@ COLUMNS = ("v0", "residual_velocity", "perforated", "absorbed_energy", "max_defl
 def run_study(scene_path: str, runs: Path, overrides: list[str], verbose: bool = True) -> list[dict]:
     """Run (or reuse) the five velocities; return one row per velocity."""
     from fabric_fenicsx.impact.simulation import ImpactError, run_impact
-    from fabric_fenicsx.studies.provenance import load_if_same
+    from fabric_fenicsx.provenance import load_if_same
     from fabric_fenicsx.impact.scene import load_scene
 
     rows = []

@@ -20,7 +20,7 @@ import json
 import subprocess
 from pathlib import Path
 
-PACKAGE = Path(__file__).resolve().parents[1]
+PACKAGE = Path(__file__).resolve().parent
 
 MODEL_MODULES = ("material/*.py", "surrogate/*.py", "surrogate/kernels/*.py", "fem/*.py", "impact/*.py")
 """The package's modules (globs relative to it) whose source determines an impact run's numbers."""

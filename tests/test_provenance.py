@@ -3,7 +3,7 @@
 import json
 import shutil
 
-from fabric_fenicsx.studies import provenance
+from fabric_fenicsx import provenance
 
 
 def test_a_stored_run_is_reused_only_with_the_same_settings_and_model_version(tmp_path):
