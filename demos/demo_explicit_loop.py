@@ -33,7 +33,7 @@ from fabric_fenicsx.fem.mesh import BOTTOM, LEFT, RIGHT, TOP, edge_dofs, min_cel
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile, ProjectileState, advance
 from fabric_fenicsx.fem.terms import IsotropicShear
 from fabric_fenicsx.fem.yarn_stress import WAVE_MODULUS_MARGIN, YarnStress, straight_yarn_modulus
-from fabric_fenicsx.impact.timestep import stable_dt
+from fabric_fenicsx.fem.timestep import stable_dt
 from fabric_fenicsx.material import zylon_as
 from fabric_fenicsx.surrogate import Surrogate
 
@@ -97,7 +97,6 @@ else:
 step = 0
 while cd.time < T_END:
     f_ext, fz_local = contact_forces(dt)                 # contact at t_n
-    material.dt_prev = dt_prev
     energy = cd.step(dt, f_ext)                          # membrane t_n -> t_n+1, energies at t_n
     fz = comm.allreduce(fz_local, op=MPI.SUM)            # force on the projectile, all ranks
     vz_full = state.vz + 0.5 * dt_prev * fz / state.mass

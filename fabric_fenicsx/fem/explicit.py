@@ -15,18 +15,26 @@ internal force the last `step` evaluated:
   kinetic   0.5 v^n . M v^n with the full-step velocity v^n = v^{n-1/2} + dt_{n-1/2}/2 a^n
             (the average of the two half-step velocities for a constant dt);
   internal  work of the internal forces, sum of (f_int^{n-1} + f_int^n)/2 . du (trapezoidal);
-            equals the stored energy while the material is elastic;
+            equals the stored energy while the material is elastic and no term dissipates;
   external  work of f_ext, same rule; support: work of the reactions at moving clamped dofs;
-  damping   energy dissipated by the numerical damping, same rule.
+  damping   energy dissipated by the integrator's numerical damping, same rule;
+  dissipated  the part of the internal work done by the weak-form terms that declare their work
+            dissipated (:attr:`~fabric_fenicsx.fem.terms.MembraneTerm.dissipative`), same rule.
 kinetic + internal + damping - external - support is conserved (= the initial kinetic energy) up
 to the O(dt^2) error of the scheme.
 
 Numerical damping (default off): stiffness-proportional Rayleigh damping C = beta K, applied as
 the viscous stress increment beta (P^n - P^{n-1}) / dt_{n-1/2}, i.e. the damping force
 beta (f_int^n - f_int^{n-1}) / dt = beta K v^{n-1/2} evaluated with the lagged velocity (standard
-for explicit codes; it damps the geometric, prestress part of K too).  It damps a mode of
-frequency omega with the ratio beta omega / 2 and lowers the stable step to
-dt <= 2/omega_max (sqrt(1 + xi^2) - xi), xi = beta omega_max / 2, which `stable_dt` includes.
+for explicit codes; it damps the geometric, prestress part of K too).  An impact run puts its
+damping into the material's viscous yarn stress instead (``material.beta``).  Either lowers the
+stable step; :meth:`CentralDifference.stable_dt` is the one rule
+(:func:`fabric_fenicsx.fem.timestep.stable_dt`) with the integrator's and the material's beta and
+the terms' viscosity.
+
+Before each assembly the membrane's term context is brought up to date: ``membrane.velocity``
+holds v^{n-1/2} (m/s, the lagged velocity, as for the damping force) and ``membrane.dt`` the
+step dt_{n-1/2} (s) that led to u^n.
 """
 from __future__ import annotations
 
@@ -36,6 +44,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from fabric_fenicsx.fem.timestep import stable_dt as damped_courant_limit
 from fabric_fenicsx.material.contract import DamageState
 
 __all__ = ["CentralDifference", "EnergyRecord", "LinearYarnMaterial"]
@@ -48,8 +57,12 @@ class LinearYarnMaterial:
     It implements both shapes of the material-point contract
     (:mod:`fabric_fenicsx.material.contract`): the state-free ``MaterialLaw``
     (``constitutive_update``, ``wave_modulus``) and the ``QuadratureMaterial`` the integrator
-    calls (``update(E1, E2) -> (P1, P2)``, ``state``, ``max_wave_modulus()``, ``remove``).
+    calls (``update(E1, E2, dt) -> (P1, P2)``, ``state``, ``strains``, ``max_wave_modulus()``,
+    ``tension()``, ``point_fields()``, ``energies()``, ``diagnostics()``, ``remove``, ``beta``).
     """
+
+    beta = 0.0
+    """No viscous stress of its own (s)."""
 
     def __init__(self, k1: float, k2: float):
         for name, k in (("k1", k1), ("k2", k2)):
@@ -82,18 +95,42 @@ class LinearYarnMaterial:
         """Damage state of the points of the last :meth:`update` (always intact)."""
         return self._state
 
-    def update(self, E1, E2):
-        """(P1, P2) at the membrane's points; points taken out by :meth:`remove` carry nothing."""
+    @property
+    def strains(self) -> tuple[np.ndarray, np.ndarray]:
+        """Yarn strains (E1, E2) of the last :meth:`update`."""
+        return self._E
+
+    def update(self, E1, E2, dt: float = 0.0):
+        """(P1, P2) at the membrane's points; points taken out by :meth:`remove` carry nothing.
+        ``dt`` (the step that led to these strains) is not used: the law has no rate."""
         if self._state is None or self._state.alpha1.shape != np.shape(E1):
             self._state = DamageState.intact(np.size(E1))
         P1, P2, self._state = self.constitutive_update(E1, E2, self._state)
         P1[self._removed] = 0.0
         P2[self._removed] = 0.0
+        self._E, self._P = (np.array(E1, dtype=float), np.array(E2, dtype=float)), (P1, P2)
         return P1, P2
 
-    def max_wave_modulus(self) -> float:
-        """max over both yarns of dP_i/dlambda_i (N/m)."""
+    def max_wave_modulus(self, lookahead: float = 0.0) -> float:
+        """max over both yarns of dP_i/dlambda_i (N/m), at any strain (``lookahead`` unused)."""
         return max(self.k1, self.k2)
+
+    def tension(self) -> np.ndarray:
+        """Yarn tensions P_i / lambda_i (N/m, shape (2, n)) of the last :meth:`update`."""
+        lam = np.sqrt(1.0 + 2.0 * np.stack(self._E))
+        return np.stack(self._P) / lam
+
+    def point_fields(self) -> dict[str, np.ndarray]:
+        """Stresses (N/m) and strains of the last :meth:`update` at every point."""
+        return {"P1": self._P[0], "P2": self._P[1], "E1": self._E[0], "E2": self._E[1]}
+
+    def energies(self) -> dict[str, float]:
+        """No viscous, damage or removal energies: a linear elastic law."""
+        return {"viscous_dissipation": 0.0, "damage_dissipation": 0.0, "erosion_energy": 0.0}
+
+    def diagnostics(self) -> dict[str, int]:
+        """No counters."""
+        return {}
 
     def remove(self, points) -> None:
         """Take points out for good: no stress there from now on."""
@@ -115,6 +152,8 @@ class EnergyRecord:
     external: float
     support: float
     damping: float
+    dissipated: float = 0.0
+    """Work (J) of the weak-form terms that declare it dissipated; part of ``internal``."""
 
     @property
     def total(self) -> float:
@@ -128,12 +167,17 @@ class CentralDifference:
     Args:
         membrane: the `fabric_fenicsx.fem.membrane.Membrane`; its displacement `u` is the state.
         material: the :class:`~fabric_fenicsx.material.contract.QuadratureMaterial` at the
-            membrane's owned points (``update(E1, E2) -> (P1, P2)``, ``max_wave_modulus()``); it
-            keeps its damage history itself (see ``LinearYarnMaterial``, ``YarnStress``).
+            membrane's owned points (``update(E1, E2, dt) -> (P1, P2)``, ``max_wave_modulus()``,
+            ``beta``); it keeps its damage history itself (see ``LinearYarnMaterial``,
+            ``YarnStress``).
         areal_density: rho_A of the reference fabric (kg/m^2).
         clamped_dofs: local unrolled dof indices with zero acceleration (ghost indices allowed,
             they are ignored here because their owner handles them).
         damping: Rayleigh stiffness-proportional coefficient beta (s), default 0.
+        cell_size: the length L (m) of the stable-step rule; default the shortest reference edge
+            (:meth:`Membrane.min_edge_length`, exact for yarns along the edges); an impact run
+            passes the smallest ``area_over_diagonal`` cell size.
+        safety: the default safety factor of :meth:`stable_dt`.
 
     Attributes:
         u: owned displacement dofs (a view of membrane.u; call `membrane.u.x.scatter_forward()`
@@ -145,9 +189,13 @@ class CentralDifference:
     """
 
     def __init__(self, membrane, material, areal_density: float, clamped_dofs,
-                 damping: float = 0.0):
+                 damping: float = 0.0, cell_size: float | None = None, safety: float = 0.9):
         if not np.isfinite(damping) or damping < 0:
             raise ValueError(f"damping (Rayleigh beta, s) must be finite and >= 0, got {damping!r}")
+        if not 0 < safety <= 1:
+            raise ValueError(f"safety must be in (0, 1], got {safety!r}")
+        self.cell_size = float(membrane.min_edge_length() if cell_size is None else cell_size)
+        self.safety = float(safety)
         self.membrane = membrane
         self.material = material
         self.areal_density = float(areal_density)
@@ -176,26 +224,35 @@ class CentralDifference:
         self._f_ext = np.zeros(n)
         self._f_damp = np.zeros(n)
         self._res_c = np.zeros(self.clamped.size)
-        self._works = np.zeros(4)  # internal, external, support, damping
-        self.energy = EnergyRecord(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        self._works = np.zeros(5)  # internal, external, support, damping, dissipated
+        self._f_diss = np.zeros(n)
+        self.energy = EnergyRecord(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self.timings = {"strain": 0.0, "material": 0.0, "assembly": 0.0, "rest": 0.0}
 
-    def stable_dt(self, safety: float = 0.9) -> float:
-        """safety * h_min / c_max with c_max = sqrt(modulus / rho_A) (the Courant limit of a
-        lumped-mass linear element, omega_max = 2 c_max / h_min), lowered for the Rayleigh
-        damping as in the module docstring.  The modulus is the material's wave modulus plus
-        the membrane's terms' (``Membrane.terms_wave_modulus``); h_min is the smallest
-        reference edge on any rank."""
-        if not (0 < safety <= 1):
-            raise ValueError(f"safety must be in (0, 1], got {safety!r}")
-        modulus = float(self.material.max_wave_modulus()) + self.membrane.terms_wave_modulus()
+    def stable_dt(self, safety: float | None = None, material_modulus: float | None = None) -> float:
+        """The stable step (s) of this membrane by the one rule,
+        :func:`fabric_fenicsx.fem.timestep.stable_dt`: wave modulus K = the material's (largest
+        over all ranks) plus the terms' (``Membrane.terms_wave_modulus``), the areal density,
+        :attr:`cell_size`, beta = the integrator's + the material's (``material.beta``), the
+        terms' viscosity (``Membrane.terms_viscosity``) and ``safety`` (default
+        :attr:`safety`). ``material_modulus`` (N/m): the material's largest wave modulus over
+        all ranks where the caller has it; else it is asked now (collective)."""
+        safety = self.safety if safety is None else safety
+        if material_modulus is None:
+            material_modulus = self.membrane.comm.allreduce(float(self.material.max_wave_modulus()),
+                                                            op=MPI.MAX)
+        modulus = float(material_modulus) + self.membrane.terms_wave_modulus()
         if not np.isfinite(modulus) or modulus <= 0:
             raise ValueError("the wave modulus (material.max_wave_modulus() plus the membrane's "
                              f"terms') must be finite and > 0 N/m, got {modulus!r}")
-        c_max = np.sqrt(modulus / self.areal_density)
-        omega_max = 2.0 * c_max / self.membrane.min_edge_length()
-        xi = 0.5 * self.beta * omega_max
-        return safety * 2.0 / omega_max * (np.sqrt(1.0 + xi * xi) - xi)
+        return damped_courant_limit(modulus, self.areal_density, self.cell_size, self.damping_beta,
+                                    safety, self.membrane.terms_viscosity())
+
+    @property
+    def damping_beta(self) -> float:
+        """The stiffness-proportional damping coefficient (s) acting on the membrane: the
+        integrator's plus the material's viscous stress's."""
+        return self.beta + float(getattr(self.material, "beta", 0.0))
 
     def evaluated_state(self) -> tuple[float, np.ndarray, np.ndarray]:
         """(t_n, u^n, v^n): the state at the time of the last evaluated internal force, to which
@@ -224,10 +281,12 @@ class CentralDifference:
         t0 = time.perf_counter()
         E1, E2 = m.yarn_strains()
         t1 = time.perf_counter()
-        P1, P2 = self.material.update(E1, E2)
+        P1, P2 = self.material.update(E1, E2, self._dt_prev)
         t2 = time.perf_counter()
         m.set_stress(P1, P2)
+        m.set_term_context(self.v, self._dt_prev)
         f_int = m.internal_force()
+        f_diss = m.dissipative_force()
         t3 = time.perf_counter()
 
         if self.beta > 0.0 and self._dt_prev > 0.0:
@@ -245,22 +304,24 @@ class CentralDifference:
             0.5 * np.dot(f_ext + self._f_ext, du),
             -0.5 * np.dot(residual[c] + self._res_c, du[c]),
             0.5 * np.dot(f_damp + self._f_damp, du),
+            0.0 if f_diss is None else 0.5 * np.dot(f_diss + self._f_diss, du),
             0.0,
             float(np.sum(E1) + np.sum(E2) + np.sum(P1) + np.sum(P2)),
         ])
         v_full = self.v + (0.5 * self._dt_prev) * acc
-        local[4] = 0.5 * np.dot(self.mass * v_full, v_full)
+        local[5] = 0.5 * np.dot(self.mass * v_full, v_full)
         total = np.empty_like(local)
         m.comm.Allreduce(local, total, op=MPI.SUM)
         if not np.all(np.isfinite(total)):
             raise FloatingPointError(
                 f"explicit step {self.n_steps} at t = {self.time:.6e} s produced non-finite values "
                 f"(work increments, kinetic energy, strain/stress sums = {total}); "
-                f"dt = {dt:.3e} s, "
-                f"stable_dt = {self.stable_dt():.3e} s. Reduce dt (safety factor) or check the "
+                f"the step that led here was dt = {self._dt_prev:.3e} s and the next is "
+                f"dt = {dt:.3e} s (safety {self.safety:g} x the damped Courant limit of "
+                f"fabric_fenicsx.fem.timestep.stable_dt). Lower the safety factor or check the "
                 f"material response for these strains.")
-        self._works += total[:4]
-        self.energy = EnergyRecord(self.time, float(total[4]), *map(float, self._works))
+        self._works += total[:5]
+        self.energy = EnergyRecord(self.time, float(total[5]), *map(float, self._works))
 
         self.v += (0.5 * (self._dt_prev + dt)) * acc
         np.multiply(self.v, dt, out=self._du)
@@ -268,6 +329,8 @@ class CentralDifference:
         m.u.x.scatter_forward()
 
         self._f_int, self._f_ext, self._f_damp = f_int, f_ext, f_damp
+        if f_diss is not None:
+            self._f_diss = f_diss
         self._res_c = residual[c]
         self._dt_prev = dt
         self.time += dt

@@ -69,6 +69,12 @@ class Membrane:
             add one with :meth:`add_term`.
         live: DG0 live-cell mask (1 live, 0 removed) that multiplies every term.
         quadrature_weights_detJ: reference area dA (m^2) of every owned quadrature point.
+
+    The term context: a term's :meth:`~fabric_fenicsx.fem.terms.MembraneTerm.integrand` receives
+    the membrane and may use ``u``, ``v``, ``F``, ``L1``, ``L2``, ``a1``, ``a2``, ``lambda1``,
+    ``lambda2``, ``dx`` and, for rate-dependent terms, ``velocity`` (a Function holding the
+    lagged velocity v^{n-1/2}, m/s, set by the integrator before each assembly; created on first
+    use) and ``dt`` (a Constant, the step dt_{n-1/2} that led to u^n, s).
     """
 
     def __init__(self, msh, angle: float = 0.0, quadrature_degree: int = 2,
@@ -146,6 +152,29 @@ class Membrane:
         self._energy_forms: dict[int, object] = {}
         self._b = None
         self._h_min = None
+        self._velocity = None
+        self.dt = fem.Constant(msh, PETSc.ScalarType(0.0))
+        self._diss_form = None
+        self._diss_key = None
+        self._diss_b = None
+
+    # ---------------------------------------------------------------- the term context
+    @property
+    def velocity(self) -> fem.Function:
+        """The lagged velocity v^{n-1/2} (m/s) as a Function on ``V``, for terms whose residual
+        depends on the rate (a viscous term); the integrator keeps it current once it exists."""
+        if self._velocity is None:
+            self._velocity = fem.Function(self.V, name="velocity")
+        return self._velocity
+
+    def set_term_context(self, velocity: np.ndarray, dt: float) -> None:
+        """Bring the term context up to date before an assembly: the owned velocity dofs
+        (m/s) into :attr:`velocity` (only if a term asked for it; collective then) and the step
+        ``dt`` (s) into :attr:`dt`."""
+        self.dt.value = dt
+        if self._velocity is not None:
+            self._velocity.x.array[:velocity.size] = velocity
+            self._velocity.x.scatter_forward()
 
     # ---------------------------------------------------------------- the physics in UFL
     def stress_tensor(self):
@@ -173,6 +202,11 @@ class Membrane:
         """Sum of the terms' own wave moduli (N/m), added to the material's for the stable time
         step (the yarn term's stiffness is the material's and adds nothing here)."""
         return float(sum(term.wave_modulus() for term in self.terms))
+
+    def terms_viscosity(self) -> float:
+        """Sum of the terms' viscosities eta (N s/m): their damping's share of the stable time
+        step (:func:`fabric_fenicsx.fem.timestep.stable_dt`)."""
+        return float(sum(term.viscosity() for term in self.terms))
 
     def term_energies(self) -> dict[str, float]:
         """Stored energy (J, all ranks) of every term that books its own, over the live cells."""
@@ -271,6 +305,35 @@ class Membrane:
             with b.localForm() as b_local:
                 for term in self._per_cell_terms:
                     term.add_cell_forces(self, b_local.array_w.reshape(-1, 3))
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        return b.array_r.copy()
+
+    def dissipative_force(self) -> np.ndarray | None:
+        """Owned part of the forces (N) of the terms that declare their work dissipated
+        (:attr:`~fabric_fenicsx.fem.terms.MembraneTerm.dissipative`), at the state of the last
+        :meth:`internal_force`; None when no term does. Their work is part of the internal work
+        and is booked apart as dissipation (``EnergyRecord.dissipated``)."""
+        terms = [t for t in self.terms if t.dissipative]
+        if not terms:
+            return None
+        if any(t.per_cell for t in terms):
+            raise NotImplementedError("a per_cell term cannot declare its work dissipated: give it "
+                                      "a UFL integrand")
+        key = tuple(id(t) for t in terms)
+        if self._diss_form is None or key != self._diss_key:
+            parts: dict = {}
+            for term in terms:
+                dx = term.measure(self)
+                rule = tuple(sorted(dx.metadata().items()))
+                parts[rule] = parts.get(rule, 0) + self.live * term.integrand(self) * dx
+            self._diss_form = [fem.form(part, jit_params=dict(self.jit_params)) for part in parts.values()]
+            self._diss_key = key
+            self._diss_b = la.create_petsc_vector(self.V.dofmap.index_map, self.V.dofmap.index_map_bs)
+        b = self._diss_b
+        with b.localForm() as b_local:
+            b_local.set(0.0)
+        for form in self._diss_form:
+            fem_petsc.assemble_vector(b, form)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return b.array_r.copy()
 

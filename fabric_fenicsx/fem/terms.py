@@ -1,16 +1,33 @@
 """Terms of the membrane's weak form, each with its residual, its share of the stable time step
-and its stored energy.
+and its stored or dissipated energy.
 
-The membrane's residual is R(u; v) = sum over its terms of int live * r_term(u; v) dA, where
-``live`` is the membrane's live-cell mask (1 in a live cell, 0 in a deleted or eroded one), so a
-removed cell carries no force from any term. A term gives:
+**The equation the membrane solves** (thesis Eq. 2-4, discretised with a lumped mass):
+
+    M a = f_ext - f_int,    f_int,a = R(u; N_a),    R(u; v) = sum over terms of int live r_term(u; v) dA,
+
+with N_a the nodal test functions, a the nodal accelerations, f_ext the contact forces, and
+``live`` the live-cell mask (1 in a live cell, 0 in a deleted or eroded one, so a removed cell
+carries no force from any term). **The sign of a term**: r_term(u; v) is the internal virtual
+work, the work the fabric's internal forces absorb in the virtual displacement v; for a term with
+stored energy psi(u) it is the variation d psi(u)[v] (``ufl.derivative(psi, m.u, m.v)``), and for
+a viscous term it is positive for v along the velocity (eta Grad(velocity) : Grad v). A term
+with the other sign pushes the fabric and feeds it energy. A term gives:
 
 - :meth:`MembraneTerm.integrand`: r_term, a UFL expression linear in the test function ``m.v``
-  (the membrane multiplies it by the mask and integrates it with ``m.dx``);
+  (the membrane multiplies it by the mask and integrates it with ``m.dx``); the membrane ``m``
+  is the term's context: ``u``, ``velocity`` (v^{n-1/2}), ``dt``, ``F``, the yarn directions and
+  stretches (:class:`~fabric_fenicsx.fem.membrane.Membrane`);
 - :meth:`MembraneTerm.wave_modulus`: its stiffness (N/m) as a wave modulus, added to the
   material's to set the explicit stable time step dt ~ h / sqrt(modulus / rho_A);
+- :meth:`MembraneTerm.viscosity`: its viscosity eta (N s/m) where it damps, the damping's
+  share of the stable step (:func:`fabric_fenicsx.fem.timestep.stable_dt`);
+- :attr:`MembraneTerm.dissipative`: True when its work is dissipated, not stored: the run books
+  it as dissipation (``energies.terms_dissipation`` in summary.json), not as stored energy;
 - :meth:`MembraneTerm.energy_density`: its stored energy per reference area (J/m^2, UFL), or
-  None where the energy is booked elsewhere (the yarns' by the material);
+  None where it stores none or the energy is booked elsewhere (the yarns' by the material);
+- :attr:`MembraneTerm.follows_integrity` with :meth:`MembraneTerm.follow`: the public switch
+  for a term whose stiffness follows the yarns' damage; an impact run calls ``follow`` with the
+  material's damage state and yarn tensions (:class:`FollowsIntegrity` is a ready mixin);
 - :meth:`MembraneTerm.measure` (default ``m.dx``, the yarn stresses' quadrature) and
   :meth:`MembraneTerm.prepare` (called before every assembly, for terms with coefficients that
   follow the displacement).
@@ -20,7 +37,9 @@ A term whose residual is a fixed linear operator per cell may instead set
 over all owned cells at once, live-cell mask applied by the term): the membrane adds those
 forces to the assembled ones and books the energy it returns (:class:`HourglassControl`).
 
-A new term is one small class; see :class:`IsotropicShear` and demos/demo_weak_form.py.
+A new term is one small class; see :class:`IsotropicShear` and demos/demo_weak_form.py. A scene
+names extra terms as ``membrane.terms = ["package.module:Class"]`` (or a table with ``class``
+and keyword arguments), so that the command line and the studies run them.
 """
 from __future__ import annotations
 
@@ -31,7 +50,8 @@ import numpy as np
 import ufl
 from numba import njit
 
-__all__ = ["MembraneTerm", "YarnTerm", "IsotropicShear", "HourglassControl", "fluctuation_matrices"]
+__all__ = ["MembraneTerm", "FollowsIntegrity", "YarnTerm", "IsotropicShear", "HourglassControl",
+           "fluctuation_matrices"]
 
 
 class MembraneTerm:
@@ -42,6 +62,12 @@ class MembraneTerm:
     per_cell = False
     """True for a term that adds its forces itself (:meth:`add_cell_forces`) instead of being
     assembled from its UFL :meth:`integrand`."""
+    dissipative = False
+    """True for a term whose work is dissipated (a viscous term): booked as dissipation in the
+    energy balance, not as stored energy."""
+    follows_integrity = False
+    """True for a term that follows the yarns' damage: an impact run then calls :meth:`follow`
+    before the first step."""
 
     def integrand(self, m):
         """r(u; v): the term's integrand of the residual, linear in ``m.v`` (per reference area)."""
@@ -51,9 +77,22 @@ class MembraneTerm:
         """The term's stiffness as a wave modulus (N/m), added to the material's for dt."""
         return 0.0
 
+    def viscosity(self) -> float:
+        """The term's viscosity eta (N s/m), its damping's share of the stable time step:
+        a damping force eta Grad(velocity) : Grad v has the damping ratio omega eta / (2 K) at
+        the mesh's highest frequency omega. 0 for a term that does not damp."""
+        return 0.0
+
     def energy_density(self, m):
         """Stored energy per reference area (J/m^2) as a UFL expression, or None."""
         return None
+
+    def follow(self, state, tension=None) -> None:
+        """For a term with :attr:`follows_integrity`: ``state()`` returns the material's
+        :class:`~fabric_fenicsx.material.contract.DamageState` at the owned quadrature points
+        (cell by cell) and ``tension()`` its yarn tensions P_i / lambda_i there (shape (2, n),
+        N/m); both are to be read before every assembly (in :meth:`prepare`)."""
+        raise NotImplementedError(f"{type(self).__name__} sets follows_integrity but has no follow()")
 
     def measure(self, m):
         """The integration measure of the term (default: the membrane's, ``m.dx``)."""
@@ -98,12 +137,13 @@ def _cell_means(wq: np.ndarray, values) -> np.ndarray:
     return np.stack([(wq * np.reshape(v, wq.shape)).sum(axis=1) for v in values])
 
 
-class _FollowsIntegrity:
-    """A term whose stiffness follows the weave's integrity: per cell the factor
+class FollowsIntegrity:
+    """Mixin for a term whose stiffness follows the weave's integrity: per cell the factor
     min(alpha1, alpha2) of the cell means of the material's damage (a cell with a broken yarn
     family has no weave left to resist), once :meth:`follow` connects it to a material; 1
-    before."""
+    before. Multiply the term's stiffness by :meth:`_coefficient` in its UFL expressions."""
 
+    follows_integrity = True
     _integrity = None
     _scale = None
     _wq = None
@@ -134,7 +174,7 @@ class _FollowsIntegrity:
         self._scale.x.scatter_forward()
 
 
-class IsotropicShear(_FollowsIntegrity, MembraneTerm):
+class IsotropicShear(FollowsIntegrity, MembraneTerm):
     """A small isotropic in-plane shear stiffness G (N/m): the variation of
     psi = G dev(E) : dev(E) with the membrane Green strain E = (F^T F - I) / 2 (Eq. 2-2).
 
@@ -146,7 +186,7 @@ class IsotropicShear(_FollowsIntegrity, MembraneTerm):
     estimate (measured on 4 x 4 to 12 x 12 meshes), so for G up to the yarns' modulus the true
     stable step is at least 0.97 of the estimate, inside the safety factor (run.dt_safety 0.8);
     a shear-dominated membrane (G >> yarn modulus) would need a lower safety factor. In an
-    impact run G follows the weave's integrity (:class:`_FollowsIntegrity`): without that, a
+    impact run G follows the weave's integrity (:class:`FollowsIntegrity`): without that, a
     cell whose yarns had broken kept a film of stiffness G (measured: G = 1e5 N/m held the
     projectile of the `make demo` scene, rebounding at 41-42 m/s, cells deleted instead of
     eroded)."""
@@ -209,6 +249,7 @@ class HourglassControl(MembraneTerm):
 
     name = "hourglass"
     per_cell = True
+    follows_integrity = True
     DEGREE = 2
 
     def __init__(self, ratio: float, modulus: float):

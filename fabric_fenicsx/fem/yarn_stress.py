@@ -8,7 +8,7 @@ its force-free strain, :mod:`fabric_fenicsx.fem.tension_field`), under the membr
 and slack rules, plus a stiffness-proportional viscous stress; it books the energy released by
 damage, the viscous work and the energy of removed points, and gives the wave modulus that sets
 the stable time step.
-The modelling choices behind each rule are in docs/impact.md.
+The modelling choices behind each rule are in docs/impact_model.md.
 """
 from __future__ import annotations
 
@@ -49,8 +49,8 @@ class YarnStress:
 
     surrogate: a :class:`fabric_fenicsx.surrogate.table.Surrogate`; weights: reference area dA of
     each point (m^2); damage: evolve alpha (Eq. 2-25) or keep alpha = 1 and ask the
-    surrogate's intact layer only; beta: damping coefficient (s). Set ``dt_prev`` (the last
-    step) before each ``CentralDifference.step``.
+    surrogate's intact layer only; beta: damping coefficient (s) of the viscous stress, whose
+    rate takes the ``dt`` of :meth:`update`.
 
     Local (this rank) accumulators, J: ``viscous_dissipation``, ``damage_dissipation``,
     ``erosion_energy``. ``beyond_table``: point evaluations with a strain above the table
@@ -69,7 +69,6 @@ class YarnStress:
         n = self.w.size
         self.damage = bool(damage)
         self.beta = float(beta)
-        self.dt_prev = 0.0
         self.live = np.ones(n, dtype=bool)
         self._idx = np.arange(n)
         self._sel = slice(None)
@@ -153,10 +152,37 @@ class YarnStress:
         """Damage history (alpha1, alpha2) of every owned point after the last :meth:`update`."""
         return DamageState(self.alpha1, self.alpha2)
 
-    def update(self, E1, E2):
+    @property
+    def strains(self) -> tuple[np.ndarray, np.ndarray]:
+        """Yarn strains (E1, E2) of the last :meth:`update`."""
+        return self.E1, self.E2
+
+    def point_fields(self) -> dict[str, np.ndarray]:
+        """The fields an impact run writes (:data:`~fabric_fenicsx.material.contract.POINT_FIELDS`)
+        at every owned point after the last :meth:`update`."""
+        sdv1 = ((self.alpha1 > 0) | (self.alpha2 > 0)).astype(float)
+        return {"P1": self.P_el[0] + self.P_v[0], "P2": self.P_el[1] + self.P_v[1], "E1": self.E1,
+                "E2": self.E2, "SDV1": sdv1, "SDV2": self.alpha1, "SDV3": self.alpha2}
+
+    def energies(self) -> dict[str, float]:
+        """This rank's accumulated energies (J): viscous work, damage dissipation, energy of
+        removed points."""
+        return {"viscous_dissipation": self.viscous_dissipation,
+                "damage_dissipation": self.damage_dissipation, "erosion_energy": self.erosion_energy}
+
+    def diagnostics(self) -> dict[str, int]:
+        """This rank's counters of point evaluations (summary.json ``surrogate``): above the
+        table with damage off, compressed below it, slack with a positive table tension, wave
+        moduli cut to their bound, wrinkled yarns, wrinkled yarns without a force-free strain."""
+        return {"beyond_table": self.beyond_table, "below_table": self.below_table,
+                "slack_tension": self.slack_tension, "modulus_bounded": self.modulus_bounded,
+                "wrinkled": self.relax_stats.relaxed, "wrinkled_without_root": self.relax_stats.no_root}
+
+    def update(self, E1, E2, dt: float = 0.0):
         """(P1, P2) at every owned point from the damage history this adapter keeps: elastic +
         viscous yarn stress at the live points (Eq. 2-31 from the surrogate, alpha from
-        Eq. 2-25), zero at the points of removed cells; the history advances to the new alpha."""
+        Eq. 2-25), zero at the points of removed cells; the history advances to the new alpha.
+        ``dt`` (s): the step that led to these strains, the viscous stress's rate (0: none)."""
         n = self.w.size
         idx = self._idx
         sel = self._sel   # the live points: a slice while none was removed (no gathers)
@@ -183,7 +209,7 @@ class YarnStress:
         # table a lookup at its end would freeze a positive crimp-interchange tension and pull
         # the cell together without bound; in biaxial compression the unit cell's branch has
         # jumps whose interpolant leaves small spurious tensions with huge slopes.
-        beta_over_dt = self.beta / self.dt_prev if self.beta > 0.0 and self.dt_prev > 0.0 else 0.0
+        beta_over_dt = self.beta / dt if self.beta > 0.0 and dt > 0.0 else 0.0
         ref = self.P_el[:, sel]  # P(E^{n-1}, alpha^{n-1}); at the points whose alpha changed:
         if beta_over_dt and changed.size:
             c = idx[changed]
@@ -257,9 +283,9 @@ class YarnStress:
                                np.maximum(self.P_el[1, idx], 0) / np.sqrt(1 + 2 * E2))
         return float(max(eig.max(), geometric.max(), 0.0))
 
-    def max_wave_modulus(self) -> float:
-        """Rank-local :meth:`wave_modulus` (``CentralDifference.stable_dt`` compatibility)."""
-        return self.wave_modulus()
+    def max_wave_modulus(self, lookahead: float = 0.0) -> float:
+        """Rank-local :meth:`wave_modulus` (the contract's name)."""
+        return self.wave_modulus(lookahead)
 
     def remove(self, points: np.ndarray) -> None:
         """Take points out (removed cells): no stress from now on; book their stored energy."""

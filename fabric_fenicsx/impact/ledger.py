@@ -43,9 +43,6 @@ class EnergyLedger:
     n_front: int = 0
     t_touch: float | None = None
     step_touch: int | None = None
-    beyond_table: int = 0       # point evaluations above the table (damage off)
-    below_table: int = 0        # point evaluations with a yarn compressed below the table
-    slack_tension: int = 0      # ... where a slack rule zeroed a positive table tension
     t_last_contact: float | None = None
     damage_onset_time: float | None = None
     damage_onset_deflection: float | None = None

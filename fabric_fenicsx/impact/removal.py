@@ -47,7 +47,7 @@ class CellRemoval:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         mat, npc = self.material, self.npc
         dead = mat.state.removed.reshape(-1, npc).all(axis=1)
-        strain = np.maximum(mat.E1, mat.E2).reshape(-1, npc).max(axis=1)
+        strain = np.maximum(*mat.strains).reshape(-1, npc).max(axis=1)
         over = strain > self.erosion_strain
         delete = np.flatnonzero(dead & self.live_cells)
         erode = np.flatnonzero(over & ~dead & self.live_cells)

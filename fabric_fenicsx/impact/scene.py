@@ -24,6 +24,8 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any, Callable
 
+from fabric_fenicsx.impact.term_specs import check_term_specs, resolve_term_specs
+
 __all__ = ["InputError", "SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "load_scene", "load_fabric",
            "check_output_dir", "parse_override", "describe_schema", "locking_warning",
            "yarns_follow_the_mesh"]
@@ -176,6 +178,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "hourglass": Key(0.05, number(0.0, 1.0, lo_open=True),
                          "hourglass control stiffness of the reduced element as a fraction of the "
                          "straight intact yarn modulus (fabric_fenicsx.fem.terms.HourglassControl)"),
+        "terms": Key([], check_term_specs,
+                     "extra weak-form terms, MembraneTerm subclasses: a list of \"module:Class\" or "
+                     "\"file.py:Class\" (relative to the scene file) or tables {class = \"module:Class\", "
+                     "key = value} with keyword arguments (fabric_fenicsx.impact.term_specs)"),
     },
     "mesh": {
         "kind": Key("graded", choice("graded", "uniform", "aligned"),
@@ -419,14 +425,17 @@ def locking_warning(scene: Scene) -> str:
 def load_scene(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
     """Read and validate a scene TOML file (``None``: defaults only) with overrides, and the
     fabric file it names (``fabric.file``, relative to the scene file's folder, or to the
-    working folder without a scene file), which is read and validated too."""
+    working folder without a scene file), which is read and validated too, and the term
+    classes of ``membrane.terms`` (imported, their arguments checked; files made absolute)."""
     if path is None:
-        scene = build_scene({}, overrides)
-        _resolve_fabric_file(scene, Path.cwd())
-        return scene
-    path = Path(path)
-    scene = build_scene(_read_toml(path), overrides, str(path))
-    _resolve_fabric_file(scene, path.parent)
+        scene, base = build_scene({}, overrides), Path.cwd()
+    else:
+        path = Path(path)
+        scene, base = build_scene(_read_toml(path), overrides, str(path)), path.parent
+    _resolve_fabric_file(scene, base)
+    if scene["membrane"]["terms"]:
+        scene["membrane"]["terms"] = resolve_term_specs(scene["membrane"]["terms"], base)
+        scene.membrane.terms = scene["membrane"]["terms"]
     return scene
 
 

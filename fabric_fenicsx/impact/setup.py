@@ -6,6 +6,7 @@ from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, aligned
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
 from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear, MembraneTerm
 from fabric_fenicsx.impact.scene import Scene, load_fabric
+from fabric_fenicsx.impact.term_specs import build_scene_terms
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
 
 __all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile", "quadrature_degree"]
@@ -48,12 +49,14 @@ def quadrature_degree(scene: Scene) -> int:
 def build_terms(scene: Scene, straight_modulus: float) -> list[MembraneTerm]:
     """The weak-form terms the scene switches on besides the yarns' (``[membrane]``): the
     hourglass control of the reduced element (stiffness ``membrane.hourglass`` x
-    ``straight_modulus``, N/m) and an isotropic shear stiffness."""
+    ``straight_modulus``, N/m), an isotropic shear stiffness and the terms the scene names
+    (``membrane.terms``, :mod:`fabric_fenicsx.impact.term_specs`), in that order."""
     terms: list[MembraneTerm] = []
     if scene.mesh.element == "reduced":
         terms.append(HourglassControl(scene.membrane.hourglass, straight_modulus))
     if scene.membrane.shear_modulus > 0:
         terms.append(IsotropicShear(scene.membrane.shear_modulus))
+    terms.extend(build_scene_terms(scene.membrane.terms))
     return terms
 
 

@@ -1,12 +1,13 @@
 """Ballistic impact of a woven-fabric ply by a rigid flat-ended cylinder (thesis chapter 4).
 
-:class:`ImpactSimulation` assembles the parts a scene asks for (:mod:`.setup`): the membrane
-with its weak-form terms, the surrogate at the quadrature points (``fem.yarn_stress``), the
-explicit central difference, the rigid projectile with penalty contact. :meth:`ImpactSimulation.run`
-is the step loop: contact, fabric step, cell removal (:mod:`.removal`), one collective reduction
-into the energy ledger (:mod:`.ledger`), the projectile, output (:mod:`.output`), checks for
-numerical trouble, the time step (:mod:`.timestep`) and the end test. The modelling decisions
-and the energy balance are in docs/impact_model.md, measured results in docs/impact.md.
+:class:`ImpactSimulation` is built from a scene (:mod:`.setup`: mesh, fabric, the membrane and
+its weak-form terms, the projectile and its contact), a surrogate and a material at the
+quadrature points (both built here by default, or passed in), the explicit central difference
+and cell removal (:mod:`.removal`). :meth:`ImpactSimulation.run` is the step loop: contact,
+fabric step, cell removal, one collective reduction into the energy ledger (:mod:`.ledger`),
+the projectile, output (:mod:`.output`), checks for numerical trouble (:mod:`.trouble`), the
+time step (:mod:`.timestep`) and the end test; :mod:`.summary` writes what the run computed.
+The modelling decisions and the energy balance are in docs/impact_model.md.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from mpi4py import MPI
@@ -25,18 +27,17 @@ from fabric_fenicsx.fem.membrane import Membrane
 from fabric_fenicsx.fem.mesh import edge_dofs, min_cell_size
 from fabric_fenicsx.fem.projectile import ProjectileState, advance
 from fabric_fenicsx.fem.yarn_stress import YarnStress, straight_yarn_modulus
-from fabric_fenicsx.impact.chatter import chatter_statistics
+from fabric_fenicsx.impact import trouble
 from fabric_fenicsx.impact.ledger import EnergyLedger, reduce_named
 from fabric_fenicsx.impact.pictures import FabricPictures
 from fabric_fenicsx.impact.removal import CellRemoval
 from fabric_fenicsx.impact.scene import Scene
 from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, build_projectile, build_terms,
                                          quadrature_degree)
+from fabric_fenicsx.impact.summary import build_summary
 from fabric_fenicsx.impact.timestep import (DtChange, check_due, damping_coefficient, highest_frequency,
-                                            stable_dt, unit_cell_frequency)
-from fabric_fenicsx.material.unitcell import UnitCellError
-from fabric_fenicsx.provenance import code_fingerprint
-from fabric_fenicsx.surrogate.table import SurrogateError
+                                            unit_cell_frequency)
+from fabric_fenicsx.material.contract import QuadratureMaterial
 
 __all__ = ["ImpactError", "ImpactSimulation", "run_impact", "HISTORY_COLUMNS"]
 
@@ -44,16 +45,17 @@ HISTORY_COLUMNS = (
     "time", "projectile_z", "projectile_velocity", "contact_force", "fabric_kinetic",
     "projectile_kinetic", "internal_work", "stored_energy", "damage_dissipation", "erosion_energy",
     "viscous_dissipation", "penalty_energy", "contact_dissipation", "energy_error",
-    "central_deflection", "dt", "n_contact", "deleted_cells", "eroded_cells", "membrane_terms_energy")
+    "central_deflection", "dt", "n_contact", "deleted_cells", "eroded_cells", "membrane_terms_energy",
+    "terms_dissipation")
 """history.csv: time (s); projectile face height (m) and velocity (m/s, > 0 into the fabric);
 contact force on the projectile (N, > 0 resisting); energies (J; membrane_terms_energy: the
 energy stored in the weak-form terms besides the yarns', hourglass control and shear, part of
-stored_energy); energy_error (relative);
+stored_energy; terms_dissipation: the work of the terms that declare it dissipated);
+energy_error (relative);
 central deflection (m, > 0 along the impact); dt (s); contact nodes; removed cell counts."""
 
 _BLOW_UP_ENERGY = 1.2   # kinetic energy above this multiple of KE_0 = numerical trouble
 _NEGATIVE_WORK = 0.05   # yarns that gave back more than this fraction of KE_0 beyond what they got
-_STEP_ERRORS = (FloatingPointError, ValueError, SurrogateError, UnitCellError)
 
 
 class ImpactError(RuntimeError):
@@ -73,7 +75,7 @@ class _Loop:
     """What the step loop carries from one step to the next."""
     step: int = 0
     dt: float = 0.0
-    dt_prev: float = 0.0
+    dt_prev: float = 0.0      # the last step's dt (the projectile's half step)
     dt_shown: float = 0.0
     fz_prev: float = 0.0
     z_prev: float = 0.0
@@ -87,14 +89,19 @@ class ImpactSimulation:
     """One impact scene on ``comm``: build everything the scene uses, then :meth:`run`.
 
     out_dir: output folder (created); verbose: progress lines on rank 0; terms: weak-form terms
-    (:class:`~fabric_fenicsx.fem.terms.MembraneTerm`) added to those the scene switches on, before
-    the stable time step is chosen.
+    (:class:`~fabric_fenicsx.fem.terms.MembraneTerm`) added after those the scene switches on
+    or names (``membrane.terms``), before the stable time step is chosen; surrogate: a
+    :class:`~fabric_fenicsx.surrogate.table.Surrogate` of the scene's fabric built elsewhere
+    (default: built here, tiles from the cache); material: a factory ``material(membrane)``
+    returning the :class:`~fabric_fenicsx.material.contract.QuadratureMaterial` at the
+    membrane's owned points (default: :class:`~fabric_fenicsx.fem.yarn_stress.YarnStress` over
+    the surrogate with the scene's damage switch and damping, :meth:`default_material`).
     """
 
     def __init__(self, scene: Scene, out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
-                 verbose: bool = True, terms=()):
+                 verbose: bool = True, terms=(), surrogate=None,
+                 material: Callable[[Membrane], QuadratureMaterial] | None = None):
         from fabric_fenicsx.impact.output import ImpactOutput
-        from fabric_fenicsx.surrogate.table import Surrogate
 
         t_build = time.perf_counter()
         self.scene, self.comm, self.verbose = scene, comm, verbose
@@ -106,7 +113,7 @@ class ImpactSimulation:
         self.msh, facet_tags = build_mesh(sc, comm)
         self.fabric = build_fabric(sc)
         self.rho_A = self.fabric.areal_density
-        k_straight = straight_yarn_modulus(self.fabric)
+        self.k_straight = k_straight = straight_yarn_modulus(self.fabric)
         self.membrane = m = Membrane(self.msh, angle=math.radians(sc.material.angle),
                                      quadrature_degree=quadrature_degree(sc))
         for term in (*build_terms(sc, k_straight), *terms):
@@ -114,26 +121,26 @@ class ImpactSimulation:
         self.n_cells_global = comm.allreduce(m.n_cells, op=MPI.SUM)
         self.npc = m.n_points_per_cell
 
-        # -- material at the quadrature points, its damping
-        workers = 1 if comm.size > 1 else None
-        cache = sc.material.surrogate_cache or None
-        self.surrogate = Surrogate(self.fabric, cache_dir=cache, workers=workers,
-                                   progress=verbose and self.rank0)
+        # -- damping of the fabric, surrogate and material at the quadrature points
         self.L_min = min_cell_size(self.msh, "area_over_diagonal")
         self.omega_straight = highest_frequency(k_straight, self.rho_A, self.L_min)
         self.xi = sc.run.damping
         self.omega_cell = unit_cell_frequency(self.fabric, k_straight)
-        beta = damping_coefficient(self.xi, self.omega_cell)
-        self.xi_mesh = 0.5 * beta * self.omega_straight   # its damping ratio at this mesh's highest frequency
-        self.material = YarnStress(self.surrogate, m.quadrature_weights_detJ, sc.material.damage, beta,
-                                   straight_modulus=k_straight)
+        self.beta = damping_coefficient(self.xi, self.omega_cell)
+        self.xi_mesh = 0.5 * self.beta * self.omega_straight   # its damping ratio at this mesh's highest frequency
+        if surrogate is None and material is None:
+            surrogate = self.default_surrogate()
+        self.surrogate = surrogate
+        self.material = (material or self.default_material)(m)
+        self._check_material()
         for term in m.terms:
-            if hasattr(term, "follow"):      # terms that follow the yarns' integrity and tension
+            if term.follows_integrity:
                 term.follow(lambda: self.material.state, self.material.tension)
 
         # -- integrator, removal of cells
         clamped = edge_dofs(m.V, facet_tags, [EDGE_TAGS[e] for e in sc.boundary.clamped])
-        self.cd = CentralDifference(m, self.material, self.rho_A, clamped, damping=0.0)
+        self.cd = CentralDifference(m, self.material, self.rho_A, clamped, damping=0.0,
+                                    cell_size=self.L_min, safety=sc.run.dt_safety)
         self.removal = CellRemoval(m, self.material, np.unique(clamped // 3),
                                    sc.material.erosion_strain if sc.material.damage else None)
         self.n_nodes = m.n_owned_nodes
@@ -153,7 +160,7 @@ class ImpactSimulation:
         self.centre_node = int(np.argmin(dist)) if comm.rank == self.centre_rank else -1
 
         # -- time step
-        self.dt = self.stable_dt(self._global_modulus())
+        self.dt = self.stable_dt(self._material_modulus())
         self.dt_initial = self.dt
         self.dt_changes: list[DtChange] = []
 
@@ -164,14 +171,42 @@ class ImpactSimulation:
                          if out.png or out.animation else None)
         self.ledger = EnergyLedger()
         self.clock = _Clock()
-        self._tile_seconds0 = self.surrogate.build_seconds
+        self._tile_seconds0 = self.surrogate.build_seconds if self.surrogate is not None else 0.0
         self.build_seconds = time.perf_counter() - t_build
         terms = ", ".join(t.name for t in m.terms)
         self._say(f"impact: {sc.source}: {self.n_cells_global} cells on {comm.size} rank(s), "
-                  f"L_min = {self.L_min * 1e3:.3f} mm, damping xi = {self.xi:g} at the unit cell (beta = {beta:.3e} s, "
+                  f"L_min = {self.L_min * 1e3:.3f} mm, damping xi = {self.xi:g} at the unit cell (beta = {self.beta:.3e} s, "
                   f"xi = {self.xi_mesh:.3g} at the mesh's highest frequency), "
                   f"dt = {self.dt:.4e} s, v0 = {p.velocity:g} m/s, damage {'on' if sc.material.damage else 'off'}, "
                   f"clamped {sc.boundary.clamped}, angle {sc.material.angle:g} deg, terms: {terms}")
+
+    def default_surrogate(self):
+        """The unit cell's surrogate for the scene's fabric, tiles from the scene's cache."""
+        from fabric_fenicsx.surrogate.table import Surrogate
+
+        workers = 1 if self.comm.size > 1 else None
+        cache = self.scene.material.surrogate_cache or None
+        return Surrogate(self.fabric, cache_dir=cache, workers=workers,
+                         progress=self.verbose and self.rank0)
+
+    def default_material(self, membrane: Membrane) -> YarnStress:
+        """The scene's material: the surrogate at the membrane's points with the scene's damage
+        switch and the damping coefficient :attr:`beta`."""
+        return YarnStress(self.surrogate, membrane.quadrature_weights_detJ, self.scene.material.damage,
+                          self.beta, straight_modulus=self.k_straight)
+
+    def _check_material(self) -> None:
+        """A material passed in must be a QuadratureMaterial over the membrane's points."""
+        mat = self.material
+        if not isinstance(mat, QuadratureMaterial):
+            missing = [n for n in ("beta", "state", "strains", "update", "max_wave_modulus", "tension",
+                                   "point_fields", "energies", "diagnostics", "remove") if not hasattr(mat, n)]
+            raise TypeError(f"material {type(mat).__name__} is not a QuadratureMaterial "
+                            f"(fabric_fenicsx.material.contract): it lacks {missing}")
+        n = self.membrane.n_points
+        if mat.state is not None and mat.state.alpha1.shape != (n,):
+            raise ValueError(f"material {type(mat).__name__} holds {mat.state.alpha1.shape} points, "
+                             f"the membrane has ({n},) owned quadrature points")
 
     # ------------------------------------------------------------------ small helpers
     @property
@@ -188,19 +223,21 @@ class ImpactSimulation:
         if self.verbose and self.rank0:
             print(text, flush=True)
 
-    def _global_modulus(self, lookahead: float = 0.0) -> float:
-        """Largest wave modulus over all ranks (N/m): the material's plus the terms'."""
-        local = self.material.wave_modulus(lookahead)
-        return self.comm.allreduce(local, op=MPI.MAX) + self.membrane.terms_wave_modulus()
+    def _material_modulus(self) -> float:
+        """The material's largest wave modulus over all ranks (N/m)."""
+        return self.comm.allreduce(self.material.max_wave_modulus(), op=MPI.MAX)
 
-    def stable_dt(self, modulus: float) -> float:
-        """safety x the damped Courant limit for the wave modulus (see :mod:`.timestep`).
-        Before the fabric is loaded the modulus is that of the reference state (crimped yarns)."""
+    def stable_dt(self, material_modulus: float) -> float:
+        """The step (s) for the material's largest wave modulus over all ranks: the one rule,
+        :meth:`CentralDifference.stable_dt` (the terms' moduli and viscosities, the damping and
+        run.dt_safety included). Before the fabric is loaded the modulus is that of the
+        reference state (crimped yarns)."""
+        modulus = material_modulus + self.membrane.terms_wave_modulus()
         if not (math.isfinite(modulus) and modulus > 0):
             raise ImpactError(f"stable time step: the largest wave modulus is {modulus!r} N/m; the "
                               "surrogate returned no stiffness at the live points (all yarns broken or "
                               "a table problem): check the surrogate with `fabric-fenicsx surrogate`")
-        return stable_dt(modulus, self.rho_A, self.L_min, self.material.beta, self.scene.run.dt_safety)
+        return self.cd.stable_dt(material_modulus=material_modulus)
 
     # ------------------------------------------------------------------ one step's parts
     def _contact(self, dt: float):
@@ -231,18 +268,18 @@ class ImpactSimulation:
 
     def _fabric_step(self, loop: _Loop, t_n: float, f_ext):
         """The membrane from t_n to t_n + dt; numerical trouble becomes an :class:`ImpactError`."""
-        self.material.dt_prev = loop.dt_prev
         try:
             return self.cd.step(loop.dt, f_ext)
-        except _STEP_ERRORS as err:
+        except trouble.STEP_ERRORS as err:
             raise ImpactError(self._trouble(loop.step, t_n, f"{type(err).__name__}: {err}",
-                                            self._component(err))) from err
+                                            trouble.component(err))) from err
 
     def _reduce(self, loop: _Loop, t_n: float, f_p, info, uz_c: float, removed: tuple, check: bool):
         """This step's values summed and maximised over all ranks (two collective calls)."""
         mat, cd, removal = self.material, self.cd, self.removal
         delete, erode = removed
-        damaged = bool(np.any(mat.alpha1 < 1.0) or np.any(mat.alpha2 < 1.0)) if self.scene.material.damage else False
+        state = mat.state
+        damaged = bool(np.any(state.alpha1 < 1.0) or np.any(state.alpha2 < 1.0)) if self.scene.material.damage else False
         x_new = self.X[:, 2] + cd.u[2::3]
         live_z = x_new[removal.live_nodes]
         r2 = ((self.X[:, 0] + cd.u[0::3] - self.axis_xy[0]) ** 2
@@ -253,17 +290,15 @@ class ImpactSimulation:
         sums = reduce_named(self.comm, {
             "contact_force": f_p[2], "penalty_energy": info["penalty_energy"],
             "friction_dissipation": -info["friction_work"], "n_contact": info["n_active"],
-            "viscous_dissipation": mat.viscous_dissipation, "damage_dissipation": mat.damage_dissipation,
-            "erosion_energy": mat.erosion_energy, "deleted": delete.size, "eroded": erode.size,
+            **mat.energies(), "deleted": delete.size, "eroded": erode.size,
             "damaged": float(damaged), "central_uz": uz_c, "n_front": front,
-            "beyond_table": mat.beyond_table, "below_table": mat.below_table,
-            "slack_tension": mat.slack_tension, "n_attached": info["n_attached"]})
+            "n_attached": info["n_attached"]})
         tw = time.perf_counter()
         try:
-            modulus = mat.wave_modulus(self.scene.run.dt_check_interval) if check else 0.0
-        except _STEP_ERRORS as err:
+            modulus = mat.max_wave_modulus(self.scene.run.dt_check_interval) if check else 0.0
+        except trouble.STEP_ERRORS as err:
             raise ImpactError(self._trouble(loop.step, t_n, f"time-step check: {type(err).__name__}: "
-                                            f"{err}", self._component(err))) from err
+                                            f"{err}", trouble.component(err))) from err
         self.clock.dt_check += time.perf_counter() - tw
         maxima = reduce_named(self.comm, {
             "z_max": live_z.max() if live_z.size else -math.inf, "modulus": modulus,
@@ -296,14 +331,14 @@ class ImpactSimulation:
     def _picture(self, name: str, t: float, deflection: float) -> None:
         """Keep the fabric's state for snapshots.png (no-op without pictures)."""
         if self.pictures is not None:
-            self.pictures.keep(name, t, deflection, self.material.alpha1, self.live_cells)
+            self.pictures.keep(name, t, deflection, self.material.state.alpha1, self.live_cells)
 
     def _onset_position(self) -> tuple[float, float]:
         """Reference (x, y) of the centre of the cell whose point is the most damaged at damage
         onset (smallest min(alpha1, alpha2) over all ranks; collective): where the first yarn
         starts to break, under the projectile or remote from it."""
-        mat = self.material
-        alpha = np.minimum(mat.alpha1, mat.alpha2)
+        state = self.material.state
+        alpha = np.minimum(state.alpha1, state.alpha2)
         mine = (math.inf, 0.0, 0.0)
         if alpha.size and alpha.min() < 1.0:
             centre = self._cell_centres()[int(np.argmin(alpha)) // self.membrane.n_points_per_cell]
@@ -319,12 +354,12 @@ class ImpactSimulation:
             self._centres = m.V.tabulate_dof_coordinates()[nodes, :2].mean(axis=1)
         return self._centres
 
-    def _damage_extent(self) -> tuple[int, float | None]:
+    def damage_extent(self) -> tuple[int, float | None]:
         """Cells with a damaged point (removed ones included) over all ranks, and the largest
         distance of such a cell's centre from the impact point (m; None without damage): how
         far the damage spread (thesis Sec. 4.4: local against remote damage)."""
-        m, mat = self.membrane, self.material
-        damaged = (np.minimum(mat.alpha1, mat.alpha2) < 1.0).reshape(m.n_cells, -1).any(axis=1)
+        m, state = self.membrane, self.material.state
+        damaged = (np.minimum(state.alpha1, state.alpha2) < 1.0).reshape(m.n_cells, -1).any(axis=1)
         r = np.hypot(*(self._cell_centres()[damaged] - self.axis_xy).T)
         n = self.comm.allreduce(int(damaged.sum()), op=MPI.SUM)
         reach = self.comm.allreduce(float(r.max()) if r.size else -1.0, op=MPI.MAX)
@@ -354,13 +389,13 @@ class ImpactSimulation:
             self._frame(t_n)
             loop.next_frame = _next_time(loop.next_frame, out.xdmf_interval, t_n)
         if self.pictures is not None and self.pictures.frame_due(t_n):
-            self.pictures.add_frame(t_n, -self.ledger.central_uz, self.material.alpha1, self.live_cells)
+            self.pictures.add_frame(t_n, -self.ledger.central_uz, self.material.state.alpha1, self.live_cells)
 
     def _check_trouble(self, loop: _Loop, t_n: float, energy, KE_p: float, maxima: dict) -> None:
         """Stop with a clear message on a blow-up or a broken energy balance."""
         ledger, sc = self.ledger, self.scene
         kinetic = energy.kinetic + KE_p
-        W_el = energy.internal - ledger.viscous
+        W_el = energy.internal - ledger.viscous - energy.dissipated
         moved = maxima["attached_displacement"]
         tripped = [what for bad, what in (
             (kinetic > _BLOW_UP_ENERGY * self.KE0,
@@ -385,7 +420,7 @@ class ImpactSimulation:
         summary, on screen those of 1 % or more since the last shown."""
         if not (check and modulus > 0):
             return
-        dt_new = self.stable_dt(modulus + self.membrane.terms_wave_modulus())
+        dt_new = self.stable_dt(modulus)
         if dt_new < loop.dt:
             self.dt_changes.append(DtChange(loop.step, self.cd.time, loop.dt, dt_new, float(modulus)))
             if dt_new < 0.99 * loop.dt_shown:
@@ -425,38 +460,19 @@ class ImpactSimulation:
     def run(self) -> dict:
         """Integrate until perforation, rebound, the projectile held (``run.stop_when_held``) or the
         time limit; write the output; return the summary (identical on every rank)."""
-        sc, cd, clock = self.scene, self.cd, self.clock
+        sc, cd = self.scene, self.cd
         t_wall0 = time.perf_counter()
         loop = _Loop(dt=self.dt, dt_shown=self.dt, z_prev=self.state.z, last_progress=t_wall0,
                      next_frame=0.0 if sc.output.xdmf_interval > 0 else math.inf)
-        force_t, force_f = [], []
+        forces = ([], [])          # contact force history (rank 0) for the chatter statistics
         while True:
             t_n = cd.time
-            tc = time.perf_counter()
-            f_ext, f_p, info = self._contact(loop.dt)
-            uz_c = float(cd.u[3 * self.centre_node + 2]) if self.centre_node >= 0 else 0.0
-            clock.contact += time.perf_counter() - tc
-
+            f_ext, f_p, info, uz_c = self._timed("contact", self._contact_and_centre, loop.dt)
             energy = self._fabric_step(loop, t_n, f_ext)
-
-            tb = time.perf_counter()
-            removed = self.removal.select()
-            if removed[0].size or removed[1].size:
-                self.removal.remove(*removed)
-            check = check_due(loop.step, self.ledger.step_touch, sc.run.dt_check_interval)
-            sums, maxima = self._reduce(loop, t_n, f_p, info, uz_c, removed, check)
-            self._book(loop, t_n, sums, maxima)
-            KE_p, vz_full, W_contact = self._projectile(loop, sums["contact_force"], energy)
-            if self.rank0:
-                force_t.append(t_n)
-                force_f.append(sums["contact_force"])
-            clock.bookkeeping += time.perf_counter() - tb
-
-            to = time.perf_counter()
-            self._write(loop, t_n, energy, KE_p, vz_full, W_contact)
-            clock.output += time.perf_counter() - to
-
-            self._check_trouble(loop, t_n, energy, KE_p, maxima)
+            sums, maxima, check, projectile = self._timed(
+                "bookkeeping", self._bookkeeping, loop, t_n, f_p, info, uz_c, energy, forces)
+            self._timed("output", self._write, loop, t_n, energy, *projectile)
+            self._check_trouble(loop, t_n, energy, projectile[0], maxima)
             loop.step += 1
             loop.dt_prev = loop.dt
             self._next_dt(loop, check, maxima["modulus"])
@@ -464,19 +480,42 @@ class ImpactSimulation:
             end_reason = self._end_reason(loop, sums["n_attached"])
             if end_reason:
                 break
-
-        b = self.ledger
-        b.beyond_table, b.below_table = int(sums["beyond_table"]), int(sums["below_table"])
-        b.slack_tension = int(sums["slack_tension"])
         wall = time.perf_counter() - t_wall0
-        return self._finish(end_reason, loop.step, loop.dt, wall, np.array(force_t), np.array(force_f),
-                            energy)
+        return self._finish(end_reason, loop.step, loop.dt, wall, *map(np.array, forces), energy)
 
+    def _timed(self, phase: str, fn, *args):
+        """``fn(*args)``, its wall time added to the clock's ``phase``."""
+        t0 = time.perf_counter()
+        result = fn(*args)
+        setattr(self.clock, phase, getattr(self.clock, phase) + time.perf_counter() - t0)
+        return result
+
+    def _contact_and_centre(self, dt: float):
+        """:meth:`_contact` and the central node's displacement along z at t_n (this rank's)."""
+        f_ext, f_p, info = self._contact(dt)
+        uz_c = float(self.cd.u[3 * self.centre_node + 2]) if self.centre_node >= 0 else 0.0
+        return f_ext, f_p, info, uz_c
+
+    def _bookkeeping(self, loop: _Loop, t_n: float, f_p, info, uz_c: float, energy, forces):
+        """After the fabric's step: cell removal, the collective reduction, the ledger, the
+        projectile to t_n + dt. Returns (sums, maxima, whether dt was checked, (KE_p, v_full,
+        W_contact) of the projectile at t_n)."""
+        removed = self.removal.select()
+        if removed[0].size or removed[1].size:
+            self.removal.remove(*removed)
+        check = check_due(loop.step, self.ledger.step_touch, self.scene.run.dt_check_interval)
+        sums, maxima = self._reduce(loop, t_n, f_p, info, uz_c, removed, check)
+        self._book(loop, t_n, sums, maxima)
+        projectile = self._projectile(loop, sums["contact_force"], energy)
+        if self.rank0:
+            forces[0].append(t_n)
+            forces[1].append(sums["contact_force"])
+        return sums, maxima, check, projectile
 
     # ------------------------------------------------------------------ output pieces
     def _history_row(self, t, energy, KE_p, vz_full, W_contact, dt) -> dict:
         b = self.ledger
-        W_el = energy.internal - b.viscous
+        W_el = energy.internal - b.viscous - energy.dissipated
         return {"time": t, "projectile_z": self.state.z, "projectile_velocity": -vz_full,
                 "contact_force": b.contact_force, "fabric_kinetic": energy.kinetic,
                 "projectile_kinetic": KE_p, "internal_work": energy.internal,
@@ -486,14 +525,13 @@ class ImpactSimulation:
                 "contact_dissipation": -W_contact - b.penalty_energy, "energy_error": b.error_now,
                 "central_deflection": -b.central_uz, "dt": dt, "n_contact": b.n_contact,
                 "deleted_cells": b.deleted, "eroded_cells": b.eroded,
-                "membrane_terms_energy": sum(self.membrane.term_energies().values())}
+                "membrane_terms_energy": sum(self.membrane.term_energies().values()),
+                "terms_dissipation": energy.dissipated}
 
     def point_fields(self) -> dict[str, np.ndarray]:
-        """Point values (owned quadrature points) of the cell-wise output fields."""
-        mat = self.material
-        sdv1 = ((mat.alpha1 > 0) | (mat.alpha2 > 0)).astype(float)
-        return {"P1": mat.P_el[0] + mat.P_v[0], "P2": mat.P_el[1] + mat.P_v[1], "E1": mat.E1, "E2": mat.E2,
-                "SDV1": sdv1, "SDV2": mat.alpha1, "SDV3": mat.alpha2}
+        """Point values (owned quadrature points) of the cell-wise output fields: the
+        material's (:meth:`~fabric_fenicsx.material.contract.QuadratureMaterial.point_fields`)."""
+        return self.material.point_fields()
 
     def _frame(self, t: float) -> None:
         """One XDMF frame of the state at t_n, the start of the last step: the time at which the
@@ -504,130 +542,33 @@ class ImpactSimulation:
         t_n, u, v = self.cd.evaluated_state()
         self.output.frame(t_n, u, v, self.point_fields(), self.live_cells)
 
-    @staticmethod
-    def _component(err: BaseException) -> str:
-        """The component an error of a step comes from: the surrogate's table (a tile), the
-        unit cell (solving a tile) or the membrane (its step: non-finite or invalid values)."""
-        if isinstance(err, SurrogateError):
-            return "table tile"
-        if isinstance(err, UnitCellError):
-            return "unit cell"
-        return "membrane"
-
-    def _fixes(self, component: str) -> str:
-        """What can help when ``component`` failed; only settings that change it."""
-        not_dt = "the time step is not the cause"
-        if component == "table tile":
-            return (f"{not_dt}; a table tile of the surrogate cache holds bad values: delete "
-                    f"{self.surrogate.cache_dir} so that its tiles are solved again")
-        if component == "unit cell":
-            return (f"{not_dt}; the unit cell did not converge while solving a table tile at the "
-                    f"strains above: check the fabric's values (fabric.file)")
-        return ("Likely fixes: lower run.dt_safety, raise run.damping, lower projectile.penalty_fraction, "
-                "or refine the mesh at the impact point (mesh.h_centre)")
-
     def _trouble(self, step: int, t: float, what: str, component: str = "membrane") -> str:
         """A message naming step, time, the component that failed (membrane, unit cell, table
-        tile), place and what can help."""
-        u = self.cd.u.reshape(-1, 3)
-        bad = np.flatnonzero(~np.all(np.isfinite(u), axis=1))
-        if bad.size:
-            place = f"first non-finite node at reference (x, y) = {self.X[bad[0], :2]} m on rank {self.comm.rank}"
-        else:
-            k = int(np.argmax(np.abs(u).sum(axis=1))) if u.size else 0
-            place = (f"largest displacement {u[k]} m at reference (x, y) = {self.X[k, :2]} m on rank "
-                     f"{self.comm.rank}" if u.size else "no owned nodes")
-        return (f"impact run stopped at step {step}, t = {t:.6e} s: in the {component}: {what}; {place}; "
+        tile), place, the step the run used and what can help (:mod:`.trouble`)."""
+        cache = self.surrogate.cache_dir if self.surrogate is not None else "the surrogate cache"
+        return (f"impact run stopped at step {step}, t = {t:.6e} s: in the {component}: {what}; "
+                f"{trouble.place(self.cd.u.reshape(-1, 3), self.X, self.comm.rank)}; "
                 f"dt = {self.cd._dt_prev:.3e} s, projectile at z = {self.state.z:.4e} m moving "
-                f"{-self.state.vz:.3f} m/s. {self._fixes(component)}; see {self.out_dir / 'history.csv'}")
+                f"{-self.state.vz:.3f} m/s. {trouble.fixes(component, cache)}; see "
+                f"{self.out_dir / 'history.csv'}")
 
     def _finish(self, end_reason, n_steps, dt, wall, force_t, force_f, energy) -> dict:
-        sc, b, cd, comm = self.scene, self.ledger, self.cd, self.comm
-        v0 = sc.projectile.velocity
-        v_res = -self.state.vz
-        perforated = bool(end_reason == "perforated" or (end_reason not in ("rebound", "held") and b.n_front == 0
-                                                          and self.state.vz < 0 and b.t_touch is not None))
-        W_el = energy.internal - b.viscous
+        """The last frame, summary.json, pictures and the closing line."""
+        cd, b = self.cd, self.ledger
         self._frame(cd.time)
-        timings = dict(cd.timings)
-        steps = max(n_steps, 1)
-        # The surrogate solves missing table tiles inside its lookups (constitutive update and
-        # dt checks): that one-off cost is reported apart from the per-step work.
-        tiles = self.surrogate.build_seconds - self._tile_seconds0
-        tiles_in_update = min(tiles, timings["material"])
-        split = {"strain": timings["strain"], "constitutive": timings["material"] - tiles_in_update,
-                 "assembly": timings["assembly"], "contact": self.clock.contact,
-                 "output": self.clock.output, "integrator": timings["rest"],
-                 "dt_check": max(self.clock.dt_check - (tiles - tiles_in_update), 0.0),
-                 "bookkeeping": self.clock.bookkeeping - self.clock.dt_check,
-                 "surrogate_tiles": tiles}
-        chatter = chatter_statistics(force_t, force_f) if self.rank0 else None
-        chatter = comm.bcast(chatter, root=0)
-        absorbed = 0.5 * sc.projectile.mass * (v0 ** 2 - v_res ** 2)
-        damaged_cells, damage_reach = self._damage_extent()
-        summary = {
-            "scene": str(sc.source), "description": sc.description,
-            "v0": v0, "residual_velocity": v_res, "perforated": perforated,
-            "absorbed_energy": absorbed,
-            "max_deflection": b.damage_onset_deflection,
-            "damage_onset_time": b.damage_onset_time,
-            "damage_onset_deflection": b.damage_onset_deflection,
-            "damage_onset_position": (list(b.damage_onset_position) if b.damage_onset_position
-                                      else None),
-            "damage_onset_radius": (float(np.hypot(*(np.array(b.damage_onset_position) - self.axis_xy)))
-                                    if b.damage_onset_position else None),
-            "damaged_cells": damaged_cells, "damage_extent_radius": damage_reach,
-            "first_removal_deflection": b.first_removal_deflection,
-            "peak_deflection": b.peak_deflection,
-            "energy_error": b.energy_error, "end_reason": end_reason,
-            "end_time": cd.time, "wall_time_s": wall, "build_time_s": self.build_seconds,
-            "n_cells": self.n_cells_global, "n_steps": n_steps, "dt": dt, "dt_initial": self.dt_initial,
-            "dt_changes": [vars(c) for c in self.dt_changes], "n_ranks": comm.size,
-            "deleted_cells": b.deleted, "eroded_cells": b.eroded,
-            "free_nodes": comm.allreduce(int(np.count_nonzero(self.removal.free_nodes)), op=MPI.SUM),
-            "energies": {"projectile_kinetic_0": self.KE0,
-                         "projectile_kinetic": 0.5 * sc.projectile.mass * v_res ** 2,
-                         "fabric_kinetic": energy.kinetic, "internal_work": energy.internal,
-                         "elastic_work": W_el, "stored_energy": W_el - b.damage - b.erosion,
-                         "damage_dissipation": b.damage, "erosion_energy": b.erosion,
-                         "viscous_dissipation": b.viscous, "penalty_energy": b.penalty_energy,
-                         "contact_dissipation": -(energy.external + b.W_projectile) - b.penalty_energy,
-                         "friction_dissipation_estimate": b.friction_estimate,
-                         "membrane_terms": self.membrane.term_energies()},
-            "contact_chatter": chatter, "touch_time": b.t_touch,
-            "time_per_step_s": {k: v / steps for k, v in split.items() if k != "surrogate_tiles"},
-            "time_total_s": split,
-            "surrogate": {"key": self.surrogate.key, "resolution": self.surrogate.h,
-                          "solves_this_run": comm.allreduce(self.surrogate.solves, op=MPI.SUM),
-                          "points_beyond_table_damage_off": b.beyond_table,
-                          "points_compressed_below_table": b.below_table,
-                          "points_slack_with_table_tension": b.slack_tension,
-                          "wave_modulus_bounded": comm.allreduce(self.material.modulus_bounded,
-                                                                 op=MPI.SUM),
-                          "points_wrinkled": comm.allreduce(self.material.relax_stats.relaxed,
-                                                            op=MPI.SUM),
-                          "points_wrinkled_without_force_free_strain": comm.allreduce(
-                              self.material.relax_stats.no_root, op=MPI.SUM),
-                          "range": self.surrogate.report_range() if self.rank0 else ""},
-            "mesh": {"L_min": self.L_min, "kind": sc.mesh.kind, "element": sc.mesh.element,
-                     "quadrature_degree": quadrature_degree(sc)},
-            "damping": {"xi": self.xi, "beta": self.material.beta, "omega_cell": self.omega_cell,
-                        "omega_max": self.omega_straight,
-                        "xi_mesh": self.xi_mesh,
-                        "share_of_absorbed": b.viscous / absorbed if absorbed > 0 else 0.0},
-            "settings": sc.to_dict(),
-            **code_fingerprint(),
-        }
-        if b.beyond_table:
+        summary = build_summary(self, end_reason, n_steps, dt, wall, force_t, force_f, energy)
+        beyond = summary["surrogate"]["points_beyond_table_damage_off"]
+        if beyond and self.surrogate is not None:
             st = self.surrogate.stats
-            self._say(f"impact: WARNING: with damage off, {b.beyond_table} point evaluations had a yarn "
+            self._say(f"impact: WARNING: with damage off, {beyond} point evaluations had a yarn "
                       f"strain above the surrogate's table (E > {self.surrogate.E_table[1]:.4g}; largest "
                       f"E1 = {st.E_max[0]:.4g}, E2 = {st.E_max[1]:.4g} on rank 0): their stress was "
                       "taken at the table's end, so the run left the model's range there")
-        self.output.finish(summary, self.live_cells, self.point_fields(), sc.output.png)
+        self.output.finish(summary, self.live_cells, self.point_fields(), self.scene.output.png)
         if self.pictures is not None:
             self._picture("end", cd.time, -b.central_uz)
-            self.pictures.write(self.out_dir, snapshots=sc.output.png)
+            self.pictures.write(self.out_dir, snapshots=self.scene.output.png)
+        v0, v_res = summary["v0"], summary["residual_velocity"]
         self._say(f"impact: {end_reason} at t = {cd.time * 1e6:.1f} us after {n_steps} steps "
                   f"({wall:.1f} s): v0 = {v0:g} m/s, residual velocity {v_res:.3f} m/s, absorbed "
                   f"{summary['absorbed_energy']:.2f} J, energy error {b.energy_error:.2e}, removed cells "
@@ -640,9 +581,11 @@ class ImpactSimulation:
 
 
 def run_impact(scene: Scene, out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
-               verbose: bool = True) -> dict:
-    """Build and run one impact scene; returns the summary (also in out_dir/summary.json)."""
-    sim = ImpactSimulation(scene, out_dir, comm, verbose)
+               verbose: bool = True, terms=(), surrogate=None, material=None) -> dict:
+    """Build and run one impact scene; returns the summary (also in out_dir/summary.json).
+    ``terms``, ``surrogate``, ``material``: as for :class:`ImpactSimulation`."""
+    sim = ImpactSimulation(scene, out_dir, comm, verbose, terms=terms, surrogate=surrogate,
+                           material=material)
     try:
         return sim.run()
     finally:

@@ -30,7 +30,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["DamageState", "MaterialLaw", "MaterialPoint", "QuadratureMaterial"]
+__all__ = ["DamageState", "MaterialLaw", "MaterialPoint", "QuadratureMaterial", "POINT_FIELDS", "ENERGIES"]
 
 
 @dataclass(frozen=True)
@@ -81,21 +81,60 @@ class MaterialPoint(Protocol):
     def respond(self, E1: float, E2: float | None, alpha_hist: tuple[float, float]): ...
 
 
+POINT_FIELDS = ("P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3")
+"""The point fields an impact run writes (cell averages in impact.xdmf): membrane stresses
+P1, P2 (N/m, elastic + viscous), yarn strains E1, E2 (Green), and Table 2's state variables
+SDV1 (1 while either yarn carries load, 0 when both are broken), SDV2 = alpha1, SDV3 = alpha2."""
+
+ENERGIES = ("viscous_dissipation", "damage_dissipation", "erosion_energy")
+"""The energies a quadrature material books (J, this rank's points, accumulated over the run):
+work of its viscous stress, energy released by damage (Eq. 2-25) and the stored energy of the
+points taken out by :meth:`QuadratureMaterial.remove`."""
+
+
 @runtime_checkable
 class QuadratureMaterial(Protocol):
-    """The material at the membrane's owned quadrature points, holding their damage history.
+    """The material at the membrane's owned quadrature points (cell-major, n points), holding
+    their damage history: everything the explicit integrator, the impact loop, cell removal and
+    the output read.
 
-    ``update(E1, E2)`` advances the state to the strains of the current step and returns the
-    stresses P1, P2 (N/m) the membrane integrates; ``state`` is the damage history after the last
-    update; ``max_wave_modulus()`` is this rank's largest wave modulus (N/m) over its points;
-    ``remove(points)`` takes points out for good (a removed cell): they carry no stress after it.
+    - ``update(E1, E2, dt)``: advance the state to the yarn strains E1, E2 (Green, shape (n,))
+      of the current step, reached in the step ``dt`` (s; 0 on the first step; the rate of a
+      viscous stress), and return the stresses P1, P2 (N/m, Eq. 2-31) the membrane integrates;
+    - ``state``: the damage history (:class:`DamageState`) after the last update; its
+      ``removed`` says which points have both yarns broken (Table 2);
+    - ``strains``: (E1, E2) of the last update (cell removal erodes on them);
+    - ``beta``: the stiffness-proportional damping coefficient (s) of its viscous stress, 0 for
+      none (it enters the stable time step);
+    - ``max_wave_modulus(lookahead=0.0)``: this rank's largest wave modulus (N/m) over its live
+      points, at the strains extrapolated ``lookahead`` steps along their last increase;
+    - ``tension()``: yarn tensions P_i / lambda_i (N/m, shape (2, n)) of the last update;
+    - ``point_fields()``: the fields to write, a subset of :data:`POINT_FIELDS` keyed by name,
+      each of shape (n,) (units as there);
+    - ``energies()``: this rank's accumulated energies (J) keyed by :data:`ENERGIES`;
+    - ``diagnostics()``: this rank's counters (int) of evaluations outside the law's range,
+      reported in summary.json (``{}`` for none);
+    - ``remove(points)``: take points out for good (a removed cell): no stress after it.
     """
+
+    beta: float
 
     @property
     def state(self) -> DamageState: ...
 
-    def update(self, E1: np.ndarray, E2: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+    @property
+    def strains(self) -> tuple[np.ndarray, np.ndarray]: ...
 
-    def max_wave_modulus(self) -> float: ...
+    def update(self, E1: np.ndarray, E2: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def max_wave_modulus(self, lookahead: float = 0.0) -> float: ...
+
+    def tension(self) -> np.ndarray: ...
+
+    def point_fields(self) -> dict[str, np.ndarray]: ...
+
+    def energies(self) -> dict[str, float]: ...
+
+    def diagnostics(self) -> dict[str, int]: ...
 
     def remove(self, points: np.ndarray) -> None: ...

@@ -217,8 +217,6 @@ def damped_run(n, dt, beta, viscous_in_material, n_steps):
     ke0 = None
     peak = 0.0
     for _ in range(n_steps):
-        if material is not None:
-            material.dt_prev = cd._dt_prev
         e = cd.step(dt)
         ke0 = e.kinetic if ke0 is None else ke0
         peak = max(peak, e.kinetic / ke0)

@@ -74,7 +74,6 @@ def test_contact_pushes_nodes_out_of_the_projectile(tmp_path):
     depth0 = info["max_penetration"]
     for _ in range(60):   # the projectile held still: the fabric is pushed out of it, until the
         f_ext, _, info = sim._contact(sim.dt)   # penalty balances the membrane pulling back
-        sim.material.dt_prev = sim.cd._dt_prev
         sim.cd.step(sim.dt, f_ext)
     z = sim.X[:, 2] + sim.cd.u[2::3]
     assert info["max_penetration"] < 0.3 * depth0
@@ -307,13 +306,12 @@ def test_viscous_yarn_stress_opposes_the_stretch_rate_and_dissipates(tmp_path):
     sim = ImpactSimulation(tiny(), tmp_path / "out", verbose=False)
     n = 40
     mat = YarnStress(sim.surrogate, np.full(n, 1e-6), damage=False, beta=2e-8)
-    mat.dt_prev = 1e-7
     E2 = np.linspace(0.0, 0.01, n)
     path = [0.004, 0.006, 0.006, 0.008, 0.006, 0.004, 0.0]
     work, prev = 0.0, (mat.lam.copy(), mat.P_v.copy())
     for k, e in enumerate(path):
         E1 = np.full(n, e)
-        P1, P2 = mat.update(E1, E2)
+        P1, P2 = mat.update(E1, E2, 1e-7)
         P_v = mat.P_v[0]
         if k and e == path[k - 1]:
             assert np.all(P_v == 0.0)

@@ -1,0 +1,48 @@
+"""Messages of an impact run that stops on numerical trouble: which component failed (the
+membrane, the unit cell while solving a table tile, a table tile), where, and what can help."""
+from __future__ import annotations
+
+import numpy as np
+
+from fabric_fenicsx.material.unitcell import UnitCellError
+from fabric_fenicsx.surrogate.table import SurrogateError
+
+__all__ = ["STEP_ERRORS", "component", "fixes", "place"]
+
+STEP_ERRORS = (FloatingPointError, ValueError, SurrogateError, UnitCellError)
+"""Errors of a step that mean numerical trouble, not a bug."""
+
+
+def component(err: BaseException) -> str:
+    """The component an error of a step comes from: the surrogate's table (a tile), the
+    unit cell (solving a tile) or the membrane (its step: non-finite or invalid values)."""
+    if isinstance(err, SurrogateError):
+        return "table tile"
+    if isinstance(err, UnitCellError):
+        return "unit cell"
+    return "membrane"
+
+
+def fixes(which: str, cache_dir) -> str:
+    """What can help when ``which`` failed; only settings that change it."""
+    not_dt = "the time step is not the cause"
+    if which == "table tile":
+        return (f"{not_dt}; a table tile of the surrogate cache holds bad values: delete "
+                f"{cache_dir} so that its tiles are solved again")
+    if which == "unit cell":
+        return (f"{not_dt}; the unit cell did not converge while solving a table tile at the "
+                f"strains above: check the fabric's values (fabric.file)")
+    return ("Likely fixes: lower run.dt_safety, raise run.damping, lower projectile.penalty_fraction, "
+            "or refine the mesh at the impact point (mesh.h_centre)")
+
+
+def place(u: np.ndarray, X: np.ndarray, rank: int) -> str:
+    """Where the trouble is: the first node with a non-finite displacement, else the node that
+    moved most (``u`` and reference coordinates ``X`` of this rank's owned nodes, (n, 3))."""
+    bad = np.flatnonzero(~np.all(np.isfinite(u), axis=1))
+    if bad.size:
+        return f"first non-finite node at reference (x, y) = {X[bad[0], :2]} m on rank {rank}"
+    if not u.size:
+        return "no owned nodes"
+    k = int(np.argmax(np.abs(u).sum(axis=1)))
+    return f"largest displacement {u[k]} m at reference (x, y) = {X[k, :2]} m on rank {rank}"
