@@ -246,7 +246,7 @@ class YarnStress:
         straight intact yarn's modulus: no state of the unit cell is stiffer than its straight
         yarns (Eq. 2-31 with the crimp pulled out); steeper slopes of the interpolant are those
         across a jump of its compressive branch, which would otherwise collapse dt 3 x in every
-        damaged run (docs/impact.md). Cut evaluations are counted in ``modulus_bounded``."""
+        damaged run (docs/impact_model.md, "Time step"). Cut evaluations are counted in ``modulus_bounded``."""
         idx = self._idx
         if idx.size == 0:
             return 0.0

@@ -1,4 +1,4 @@
-"""Pictures of the deformed fabric (issue 15): ``snapshots.png`` (at damage onset, at the largest
+"""Pictures of the deformed fabric: ``snapshots.png`` (at damage onset, at the largest
 central deflection and at the end, coloured by the warp's integrity SDV2 = alpha1, with a colour
 bar and a scale bar) and, with ``output.animation``, ``impact.gif`` (the fabric every
 ``output.animation_interval`` of simulated time).

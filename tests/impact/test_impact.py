@@ -227,7 +227,7 @@ def test_no_state_in_biaxial_tension_is_stiffer_than_the_straight_yarns(coarse_s
     level. On a coarse table built here (h = 0.004); the default table's scan (0.994) is in
     the docstring of `impact.WAVE_MODULUS_MARGIN`. Beyond a yarn's failure strain the table's
     values depend on the order its tiles were built in (1.15 k was seen at E1 = 0.093 in one
-    build of five), see docs/impact.md, "Reproducibility"."""
+    build of five): the interpolant there depends on which neighbouring tiles were solved first."""
     sur = coarse_surrogate      # the session's coarse table (tests/conftest.py)
     k = straight_yarn_modulus(sur.fabric)
     # every state a live yarn can be in: beyond its failure strain E_fail a yarn is broken
