@@ -4,7 +4,11 @@
 Nothing heavy is imported at module level. Every input the run reads is checked before DOLFINx
 is loaded and the mesh is built: the scene and the fabric file it names
 (:func:`~fabric_fenicsx.impact.scene.load_scene`), the output folder
-(:func:`~fabric_fenicsx.impact.scene.check_output_dir`) and the surrogate cache (a cache that
+(:func:`~fabric_fenicsx.impact.scene.check_output_dir`), the run's size (a scene estimated beyond
+``run.max_cells`` or the free memory is refused with the finest setting that fits,
+:mod:`fabric_fenicsx.impact.sizing`; every run prints its estimate), the output folder's lock
+(one writer per folder, :mod:`fabric_fenicsx.impact.lock`: a second run into a folder in use
+stops, naming the first) and the surrogate cache (a cache that
 cannot be written is not an error: new tiles stay in memory, said once). Under MPI every rank
 checks and the ranks agree before going on, so a bad input stops all of them with one message
 (exit code 2), printed by rank 0.
@@ -71,11 +75,17 @@ def run(args: argparse.Namespace) -> int:
     scene, problem = _checked(lambda: _load(args))
     if _agreed_problem(problem):
         return 2
-    from fabric_fenicsx.impact.scene import locking_warning
+    from fabric_fenicsx.impact.scene import ignored_keys_warning, locking_warning
+    from fabric_fenicsx.impact.sizing import check_size
 
-    locking = locking_warning(scene)
-    if locking and _rank() == 0:
-        _warning(locking)
+    for warning in (locking_warning(scene), ignored_keys_warning(scene)):
+        if warning and _rank() == 0:
+            _warning(warning)
+    size, problem = _checked(lambda: check_size(scene))
+    if _agreed_problem(problem):
+        return 2
+    if _rank() == 0:
+        _say(f"estimate: {size.describe()}")
     if args.check:
         if _rank() == 0:
             print(json.dumps({"source": scene.source, **scene.to_dict()}, indent=1))
@@ -84,7 +94,25 @@ def run(args: argparse.Namespace) -> int:
     _, problem = _checked(lambda: _check_run_inputs(scene, out))
     if _agreed_problem(problem):
         return 2
-    return _run(scene, out, args)
+    lock, problem = _checked(lambda: _lock(out))
+    if _agreed_problem(problem):
+        if lock is not None:
+            lock.release()
+        return 2
+    try:
+        return _run(scene, out, args)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _lock(out: str):
+    """Rank 0 takes the output folder's lock (the other ranks return None)."""
+    if _rank() != 0:
+        return None
+    from fabric_fenicsx.impact.lock import FolderLock
+
+    return FolderLock(out, "impact run", warn=_warning).acquire()
 
 
 # ----------------------------------------------------------------------------- before any work

@@ -71,6 +71,7 @@ class LinearYarnMaterial:
         self.k1, self.k2 = float(k1), float(k2)
         self._state: DamageState | None = None
         self._removed = np.zeros(0, dtype=np.int64)
+        self._E = self._P = (np.zeros(0), np.zeros(0))
 
     @staticmethod
     def _stretch(E: np.ndarray, name: str) -> np.ndarray:

@@ -27,7 +27,7 @@ from typing import Any, Callable
 from fabric_fenicsx.impact.term_specs import check_term_specs, resolve_term_specs
 
 __all__ = ["InputError", "SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "load_scene", "load_fabric",
-           "check_output_dir", "parse_override", "describe_schema", "locking_warning",
+           "check_output_dir", "parse_override", "describe_schema", "locking_warning", "ignored_keys_warning",
            "yarns_follow_the_mesh"]
 
 EDGES = ("left", "right", "bottom", "top")
@@ -243,6 +243,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "release_time": Key(20.0e-6, number(0.0, lo_open=True, unit="s"),
                             "time without contact after which a perforation or rebound is final"),
         "max_steps": Key(0, integer(0), "stop after this many steps (0 = no limit)"),
+        "max_cells": Key(2_000_000, integer(1),
+                         "refuse, before the mesh is built, a scene estimated to have more cells "
+                         "(fabric_fenicsx.impact.sizing; a scene needing more memory than is free is refused too)"),
         "stop_when_held": Key(False, boolean,
                               "end the run as 'held' as soon as the fabric has brought the projectile to rest "
                               "and it turns back, without following the rebound (a ballistic limit needs only "
@@ -296,10 +299,12 @@ class Scene:
     ``scene.to_dict()`` (plain dict of every section, defaults filled in)."""
 
     def __init__(self, data: dict[str, dict[str, Any]], source: str = "<defaults>",
-                 description: str = ""):
+                 description: str = "", given: frozenset[str] = frozenset()):
         self._data = data
         self.source = source
         self.description = description
+        self.given = given
+        """The keys the scene file or an override set, as "section.key"."""
         for sec, values in data.items():
             setattr(self, sec, SimpleNamespace(**values))
 
@@ -379,7 +384,8 @@ def build_scene(raw: dict[str, Any], overrides: list[str] | tuple[str, ...] = ()
         raise SceneError(f"{source}: mesh.quadrature_degree applies to mesh.element = 'full' only; "
                          "the reduced element has one point per cell (set mesh.element = 'full' to "
                          "choose the Gauss rule)")
-    return Scene(data, source, description)
+    given = frozenset(f"{sec}.{key}" for sec, values in merged.items() for key in values)
+    return Scene(data, source, description, given)
 
 
 def _cross_check(d: dict[str, dict[str, Any]]) -> None:
@@ -406,6 +412,24 @@ def yarns_follow_the_mesh(scene: Scene) -> bool:
     (``uniform`` or ``aligned``, edges along x and y) with the warp at a multiple of 90 degrees."""
     angle = scene.material.angle % 90.0
     return scene.mesh.kind in ("uniform", "aligned") and min(angle, 90.0 - angle) < 1e-9
+
+
+GRADED_KEYS = ("h_centre", "h_edge", "refine_radius", "grading")
+"""Mesh keys of the graded and aligned meshes; the uniform mesh uses ``mesh.n`` alone."""
+
+
+def ignored_keys_warning(scene: Scene) -> str:
+    """The warning for mesh keys the scene gives but its mesh does not use ("" for none)."""
+    if scene.mesh.kind == "uniform":
+        unused = [f"mesh.{k}" for k in GRADED_KEYS if f"mesh.{k}" in scene.given]
+        if unused:
+            return (f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} ignored: mesh.kind = "
+                    f"'uniform' is {scene.mesh.n} x {scene.mesh.n} squares (mesh.n); the sizes apply to "
+                    "mesh.kind = 'graded' or 'aligned'")
+    elif "mesh.n" in scene.given:
+        return (f"mesh.n is ignored: mesh.kind = {scene.mesh.kind!r} takes its sizes from mesh.h_centre "
+                "and mesh.h_edge; mesh.n applies to mesh.kind = 'uniform'")
+    return ""
 
 
 def locking_warning(scene: Scene) -> str:
@@ -467,7 +491,8 @@ def _resolve_fabric_file(scene: Scene, base: Path) -> None:
     if not f.is_absolute():
         f = base / f
     if not f.is_file():
-        what = "a folder, not a file" if f.is_dir() else "no such file"
+        what = ("a folder, not a file" if f.is_dir() else
+                "not a regular file (a device, a pipe or a socket)" if f.exists() else "no such file")
         raise SceneError(f"fabric.file = {given!r}: {what} ({f}); give a fabric TOML file "
                          f"(fabric_fenicsx.material.fabric.Fabric.load) or \"\" for the built-in fabric.name")
     scene["fabric"]["file"] = str(f)

@@ -248,17 +248,20 @@ def test_damped_stable_time_step_is_the_stability_limit(viscous_in_material):
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not available")
-def test_mpi_matches_serial():
+def test_mpi_matches_serial(tmp_path):
+    """The 2-rank history is written to a file (stdout is no channel for results: other
+    libraries write to it, e.g. colorama's reset code at exit under mpirun's terminal)."""
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("runs its own 2-rank job")
     serial = np.array(energy_history())
     root = pathlib.Path(__file__).resolve().parents[2]
     env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
                OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    out = subprocess.run(["mpirun", "--oversubscribe", "-n", "2", sys.executable, __file__],
+    result = tmp_path / "history.json"
+    out = subprocess.run(["mpirun", "--oversubscribe", "-n", "2", sys.executable, __file__, str(result)],
                          env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
-    parallel = np.array(json.loads(out.stdout.strip().splitlines()[-1]))
+    parallel = np.array(json.loads(result.read_text()))
     assert parallel.shape == serial.shape
     scale = np.abs(serial).max(axis=0)
     assert np.all(np.abs(parallel - serial) <= 1e-10 * np.maximum(scale, 1e-300))
@@ -267,4 +270,4 @@ def test_mpi_matches_serial():
 if __name__ == "__main__":
     history = energy_history()
     if MPI.COMM_WORLD.rank == 0:
-        print(json.dumps(history))
+        pathlib.Path(sys.argv[1]).write_text(json.dumps(history))

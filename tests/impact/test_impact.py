@@ -489,7 +489,7 @@ import functools
 import fabric_fenicsx.surrogate.table as table
 from fabric_fenicsx.impact.scene import build_scene
 from fabric_fenicsx.impact.simulation import ImpactSimulation
-scenes, out, coarse = json.loads(sys.argv[1]), sys.argv[2], json.loads(sys.argv[3])
+scenes, out, coarse, result = json.loads(sys.argv[1]), sys.argv[2], json.loads(sys.argv[3]), sys.argv[4]
 # the session's coarse table (tests/conftest.py): this test is about ranks, not table accuracy
 table.Surrogate = functools.partial(table.Surrogate, **coarse)
 results = {}
@@ -503,7 +503,8 @@ for name, raw in scenes.items():
              "removed_cells": int(np.count_nonzero(~sim.live_cells)), "cells": int(sim.live_cells.size)}
     results[name] = {"summary": {k: s[k] for k in DIGEST}, "ranks": sim.comm.gather(local)}
 if sim.comm.rank == 0:
-    print(json.dumps(results))
+    with open(result, "w") as f:
+        json.dump(results, f)
 """
 DIGEST = ("end_reason", "residual_velocity", "energy_error", "n_steps", "deleted_cells", "eroded_cells",
           "free_nodes", "perforated", "end_time", "n_ranks", "absorbed_energy", "damage_onset_position",
@@ -535,13 +536,16 @@ def damage_runs(tmp_path_factory, coarse_surrogate):
     for n, prefix in ((1, []), (2, ["mpirun", "-n", "2", "--oversubscribe"])):
         try:
             proc = subprocess.run(prefix + [sys.executable, str(script), json.dumps(DAMAGE_SCENES),
-                                            str(folder / f"np{n}"), json.dumps(coarse)],
+                                            str(folder / f"np{n}"), json.dumps(coarse),
+                                            str(folder / f"np{n}.json")],
                                   env=mpi_env(), cwd=folder, capture_output=True, text=True, timeout=300)
         except subprocess.TimeoutExpired:
             pytest.fail(f"the runs on {n} rank(s) did not end within 300 s (a hang: a collective call "
                         f"made on some ranks only?)")
         assert proc.returncode == 0, proc.stderr[-3000:]
-        results.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        # the results come in a file: stdout carries whatever the libraries print (colorama's
+        # reset code at exit where a rank's stdout is a terminal, as under mpirun)
+        results.append(json.loads((folder / f"np{n}.json").read_text()))
     return {name: tuple((r[name]["summary"], r[name]["ranks"]) for r in results) for name in DAMAGE_SCENES}
 
 
