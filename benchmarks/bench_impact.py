@@ -10,7 +10,7 @@ tiles the surrogate had to solve (a cold cache) are shown apart: they are a one-
         [--reference KEY=VALUE ...]
 
 With ``--reference`` the same scene also runs with those keys changed (for example the settings
-before issue 13: ``--reference mesh.element=full --reference mesh.kind=graded --reference
+before the reduced element, docs/mesh_independence.md: ``--reference mesh.element=full --reference mesh.kind=graded --reference
 mesh.h_centre=1.41e-3``), and the ratio of the two runs' wall times (without surrogate tile
 solves) is printed, both measured in this one process.
 """
@@ -73,7 +73,7 @@ def bench(scene):
         print(f"    {1e3 * per[key]:8.3f}  {label}")
     print(f"    {1e3 * step_sum:8.3f}  total per step ({1 / step_sum:.0f} steps/s)")
     ours, dolfinx = per["constitutive"] + per["contact"], per["strain"] + per["assembly"]
-    print(f"  target (issue 5): constitutive + contact {1e3 * ours:.3f} ms against strain + assembly "
+    print(f"  target: constitutive + contact {1e3 * ours:.3f} ms against strain + assembly "
           f"(DOLFINx) {1e3 * dolfinx:.3f} ms: ratio {ours / dolfinx:.2f} (target <= 1)")
     print(f"  surrogate tiles solved during the run: {tiles:.1f} s ({s['surrogate']['solves_this_run']} solves)")
     print(f"  run {s['wall_time_s']:.1f} s, set-up {s['build_time_s']:.1f} s, total {total:.1f} s")

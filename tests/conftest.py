@@ -14,6 +14,8 @@
   module use that table's settings (and so its tiles) instead of the default table's.
 * The demos whose tests are selected start in the background, at a lower priority, as soon as
   the session knows its tests (:class:`BackgroundDemos`); ``test_demo_runs`` waits for them.
+* The checkout's root is put on ``sys.path`` (first, unless it is there already), so the test tools import as ``tests.tools``
+  (:mod:`tests.tools.faults`, ...) however pytest is started.
 """
 
 import os
@@ -25,6 +27,9 @@ import time
 from pathlib import Path
 
 import pytest
+
+if str(Path(__file__).resolve().parents[1]) not in sys.path:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 COARSE = dict(resolution=0.004, r_nodes=6, tile=8, progress=False)
 """Settings of the shared coarse table (``coarse_surrogate``)."""

@@ -66,7 +66,7 @@ def check_impact(out, stdout):
     is the impulse of the contact force in history.csv (within 3 %: sampled every microsecond);
     the energy balance holds within 1 %; what the demo prints is what summary.json holds.
     Not checked: the value of v_res against a converged run. The tearing phase is not yet
-    mesh-converged (issue 13, docs/mesh_independence.md); the reduced element moved this coarse
+    mesh-converged (the mesh-independence study, docs/mesh_independence.md); the reduced element moved this coarse
     run from 116 m/s (2 x 2 points) to 98 m/s."""
     import json
     s = json.loads((out / "summary.json").read_text())

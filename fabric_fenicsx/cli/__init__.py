@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
 
 # subcommand -> (module, help); each module offers add_arguments(parser) and run(args) and
@@ -44,16 +46,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, as mpirun sends it to every rank when it is interrupted, or a batch system
+    ending a job: handled as an interruption (files closed, locks released)."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "_missing", None):
         parser.error(args._missing)
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         return int(importlib.import_module(args._module).run(args) or 0)
-    except KeyboardInterrupt:
-        print("interrupted: output written so far is kept", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:
+        what = "interrupted (terminated)" if isinstance(err, Terminated) else "interrupted"
+        if os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0":
+            print(f"{what}: output written so far is kept", file=sys.stderr, flush=True)
+        return 143 if isinstance(err, Terminated) else 130
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""``fabric-fenicsx convergence``: error against run time of each discretisation knob (issue 4).
+"""``fabric-fenicsx convergence``: error against run time of each discretisation knob
+(docs/convergence.md).
 
 The command runs (or reuses) the impact ladders, the unit-cell ladder and the run-to-run
 scatter of :mod:`fabric_fenicsx.studies.convergence`, analyses them and writes the tables,

@@ -1,4 +1,4 @@
-"""The thesis's chapter 4 as studies (issue 15): which runs each study makes, the thesis's
+"""The thesis's chapter 4 as studies (docs/validation.md): which runs each study makes, the thesis's
 numbers beside them, and the tables, plot and checklist of docs/validation.md.
 
 Studies (``fabric-fenicsx study NAME``): ``table4`` (Y90 at the five velocities of Table 4),

@@ -1,4 +1,5 @@
-"""``fabric-fenicsx convergence``: error against run time for each discretisation knob (issue 4).
+"""``fabric-fenicsx convergence``: error against run time for each discretisation knob
+(docs/convergence.md).
 
 Knobs and the quantities a user reads:
 

@@ -279,7 +279,7 @@ def ladder_section(title: str, knob: str, analyses: dict, out: Path, doc: Path) 
 def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: dict, study_time: dict,
                  quick: bool, scatter: dict | None = None, dt_mesh: dict | None = None) -> None:
     doc.parent.mkdir(parents=True, exist_ok=True)
-    L = ["# Convergence: error against run time (issue 4)", "",
+    L = ["# Convergence: error against run time", "",
          f"Produced by `{command}` on {datetime.date.today().isoformat()} "
          f"(code at commit {git_head() or 'unknown'}, '+' = with uncommitted edits), {os.cpu_count()} cores, "
          f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, one MPI rank. "
@@ -315,7 +315,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
           "run's wall time, their CPU is not in its CPU time.", "",
           "## Notes", "",
           "* `run.damping` is a fraction of critical damping at the highest frequency of a membrane of "
-          "unit cells (since issue 13; before, at the highest frequency of the mesh, so that the damping "
+          "unit cells (since the reduced element, docs/mesh_independence.md; before, at the highest frequency of the mesh, so that the damping "
           "coefficient followed the smallest cell): the same coefficient on every level.",
           "* Errors are relative: |q - q_ref| / |q_ref|. The observed order uses the three finest "
           "successful levels; it is trusted for Richardson extrapolation only inside "

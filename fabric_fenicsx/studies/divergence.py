@@ -1,4 +1,5 @@
-"""Twin runs: how fast an impact run amplifies a round-off perturbation (issue 13).
+"""Twin runs: how fast an impact run amplifies a round-off perturbation (the
+mesh-independence study, docs/mesh_independence.md).
 
 Two runs of one scene differ only in the impact velocity, by a relative ``perturbation``
 (1e-12: a round-off difference, like another MPI partition or summation order). Their

@@ -1,4 +1,5 @@
-"""Ensembles: a scene's answer as a distribution over round-off-sized changes (issue 13).
+"""Ensembles: a scene's answer as a distribution over round-off-sized changes
+(the mesh-independence study, docs/mesh_independence.md).
 
 Where a run amplifies a round-off difference (``fabric-fenicsx divergence``), one run's residual
 velocity is one draw: the Y90 scene's tearing is decided by which of many nearly equally

@@ -1,5 +1,5 @@
-"""The ballistic limit by bisection, with the run-to-run scatter near it kept as a band (issue 15,
-``fabric-fenicsx study v50``).
+"""The ballistic limit by bisection, with the run-to-run scatter near it kept as a band
+(docs/validation.md, ``fabric-fenicsx study v50``).
 
 At every velocity tried, ``evaluate(v)`` returns the outcomes of a few runs (True: perforated),
 for example members whose impact velocity differs in the 12th digit. Where the outcomes scatter,

@@ -1,8 +1,8 @@
 """Work of a unit cell up to and through its damage softening, and what a crack band could do.
 
-Issue 13 asked whether a crack band (the softening branch of alpha(mu), Eq. 2-25, shortened in
-cells longer than a fabric length l) would make the energy of a tear independent of the cell
-size. In a cell of length h across the tear that energy is h x (the work per reference area to
+The mesh-independence study (docs/mesh_independence.md) asked whether a crack band (the
+softening branch of alpha(mu), Eq. 2-25, shortened in cells longer than a fabric length l) would
+make the energy of a tear independent of the cell size. In a cell of length h across the tear that energy is h x (the work per reference area to
 break the cell), W = W_pre + W_soft(s): W_pre up to damage onset, W_soft over the softening
 branch shortened by s. A crack band needs h W(s) = l W(1), which has a solution s in (0, 1]
 only if h W_pre < l W(1).

@@ -3,7 +3,7 @@
 One material point of the fabric is driven along a strain path; at each step the unit cell
 (or any other *material point*, see :class:`MaterialPoint`) returns the membrane stresses
 P_i = F_i / (2 w_j) (Eq. 2-31) with damage alpha_i = min(alpha_i^hist, alpha(mu_i^max))
-(Eq. 2-25/A.12) carried from step to step. The scenes, named as in the project's issue:
+(Eq. 2-25/A.12) carried from step to step. The scenes:
 
 * ``uniaxial-strain``  scenario 1, E2 = 0, E1 up to complete failure of the warp (Fig. 3-1);
 * ``load-unload``      scenario 2, E2 = 0, load to E1 = 0.054 (partial warp damage), unload
@@ -16,212 +16,39 @@ P_i = F_i / (2 w_j) (Eq. 2-31) with damage alpha_i = min(alpha_i^hist, alpha(mu_
 Monotone paths run on the grid E1 = k * step until every loaded yarn has failed completely,
 then ``EXTRA_STEPS`` more; they stop at ``E1_CAP`` at the latest (reported). Nothing here
 imports DOLFINx. The command line (``fabric-fenicsx static``) is :mod:`fabric_fenicsx.cli.static`.
+
+The code is split by concern; every name stays importable from this module:
+
+* :mod:`.static_scenarios`: the scenes, the constants of their paths, the step budget;
+* :mod:`.static_points`: the material points (unit cell, surrogate) and the free-fill response;
+* this module: the runner (:func:`run_scenario`, the paths, the rows);
+* :mod:`.static_report`: key points, printed summary, JSON and figure.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from fabric_fenicsx.material.contract import DamageState, MaterialPoint
+from fabric_fenicsx.material.contract import DamageState, MaterialPoint  # noqa: F401 - re-exported
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
-from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell
+from fabric_fenicsx.material.unitcell import ALPHA_BROKEN, UnitCell  # noqa: F401 - re-exported
+from fabric_fenicsx.studies.static_points import (  # noqa: F401 - re-exported
+    BACKENDS, E2_MIN, UnitCellPoint, _factory, _label, respond_free_fill, surrogate_point)
+from fabric_fenicsx.studies.static_report import (  # noqa: F401 - re-exported
+    _alpha_axis, _first, _fmt, _free_fill_key_points, _interp_P1, _path_lines, _peaks,
+    format_key_points, path_key_points, plot_scenario, write_key_points)
+from fabric_fenicsx.studies.static_scenarios import (  # noqa: F401 - re-exported
+    _LOADED, _TITLES, BENDING_RATIO, COLUMNS, DEFAULT_STEP, E1_CAP, EXTRA_STEPS, LEGS, MAX_STEPS,
+    SCENARIOS, UNLOAD_E1, _duration, _path_steps, _round_up, bending_bounds, check_budget,
+    check_step, estimate_steps)
 
-SCENARIOS = ("uniaxial-strain", "load-unload", "equibiaxial", "uniaxial-stress", "bending")
-COLUMNS = ("E1", "E2", "P1", "P2", "alpha1", "alpha2", "V")
-"""CSV columns of every scene (SI: P in N/m, V in N); load-unload adds ``leg``, bending ``B2``."""
-
-DEFAULT_STEP = 0.0005
-E1_CAP = 0.15
-"""Hard cap on E1: a path that has not failed completely by then stops and says so."""
-EXTRA_STEPS = 5
-"""Steps recorded after complete failure, to show the flat tail."""
-UNLOAD_E1 = 0.054
-"""Unloading point of scenario 2: past the P1 peak (E1 ~ 0.049), warp partially damaged."""
-BENDING_RATIO = 5.0
-"""Upper / lower bound of the yarn bending stiffness (section 3.2, after Warren)."""
-E2_MIN = -0.45
-"""Lower end of the E2 search in the free-fill root find (E > -0.5 for any stretch)."""
-LEGS = ("load", "unload", "reload")
-MAX_STEPS = 200_000
-"""Default limit on a scene's E1 steps (material-point solves; :func:`estimate_steps`). One step
-takes about 15-20 ms on one core (measured, unit cell), so this is about an hour; the default
-step gives a few hundred steps, and a step below ~1e-6 resolves nothing the figures show."""
 PROGRESS_INTERVAL = 1.0
 """Wall seconds between progress lines."""
-
-_LOADED = {  # yarns whose complete failure ends a monotone path (0 = warp, 1 = fill)
-    "uniaxial-strain": (0,), "load-unload": (0,), "equibiaxial": (0, 1),
-    "uniaxial-stress": (0,), "bending": (0,),
-}
-_TITLES = {
-    "uniaxial-strain": "Scenario 1: uniaxial strain, E2 = 0",
-    "load-unload": "Scenario 2: load, unload, reload, E2 = 0",
-    "equibiaxial": "Scenario 3: equibiaxial strain, E1 = E2",
-    "uniaxial-stress": "Scenario 4: uniaxial stress, P2 = 0",
-    "bending": "Scenario 4 with B2 at its upper and lower bound",
-}
-
-
-# ----------------------------------------------------------------------------- material points
-class UnitCellPoint:
-    """The yarn unit cell (:class:`~fabric_fenicsx.material.unitcell.UnitCell`) as a material point."""
-
-    supports_free_fill = True
-    label = "unit cell"
-
-    def __init__(self, fabric: Fabric, n_elements: int | None = None):
-        self.cell = UnitCell(fabric, n_elements=n_elements)
-
-    def respond(self, E1, E2, alpha_hist=(1.0, 1.0)):
-        return self.cell.respond(E1, E2, alpha_hist=alpha_hist)
-
-    def constitutive_update(self, E1, E2, state: DamageState):
-        """:class:`~fabric_fenicsx.material.contract.MaterialLaw`, one unit-cell solve per point:
-        (P1, P2, new DamageState), P_i signed as the unit cell gives them (Eq. 2-31)."""
-        E1, E2 = np.atleast_1d(E1).astype(float), np.atleast_1d(E2).astype(float)
-        rs = [self.respond(e1, e2, (a1, a2)) for e1, e2, a1, a2
-              in zip(E1, E2, np.atleast_1d(state.alpha1), np.atleast_1d(state.alpha2))]
-        P1, P2, a1, a2 = (np.array([getattr(r, k) for r in rs]) for k in ("P1", "P2", "alpha1", "alpha2"))
-        return P1, P2, DamageState(a1, a2)
-
-    def wave_modulus(self, E1, E2, state: DamageState, dlam: float = 1e-6):
-        """:class:`~fabric_fenicsx.material.contract.MaterialLaw`: per point the largest
-        eigenvalue (N/m) of the symmetric part of dP_i/dlambda_j at frozen damage, by central
-        differences of the unit cell's solve in the stretches (4 solves per point)."""
-        from fabric_fenicsx.surrogate.table import symmetric_eigmax
-
-        def P(e1, e2, alpha):
-            r = self.cell.solve(e1, e2, alpha=alpha)
-            return np.array([r.P1, r.P2])
-
-        E1, E2 = np.atleast_1d(E1).astype(float), np.atleast_1d(E2).astype(float)
-        out = np.empty(E1.size)
-        for k, (e1, e2, a1, a2) in enumerate(zip(E1, E2, np.atleast_1d(state.alpha1),
-                                                np.atleast_1d(state.alpha2))):
-            lam = np.sqrt(1.0 + 2.0 * np.array([e1, e2]))
-            cols = []
-            for j in range(2):
-                step = np.zeros(2)
-                step[j] = dlam
-                Ep, Em = 0.5 * ((lam + step) ** 2 - 1.0), 0.5 * ((lam - step) ** 2 - 1.0)
-                cols.append((P(*Ep, (a1, a2)) - P(*Em, (a1, a2))) / (2.0 * dlam))
-            (t11, t21), (t12, t22) = cols
-            out[k] = symmetric_eigmax(t11, t12, t21, t22)
-        return out
-
-
-def surrogate_point(fabric: Fabric):
-    """The unit-cell surrogate as a material point (imported only when asked for)."""
-    from fabric_fenicsx.surrogate.table import material_point
-    return material_point(fabric)
-
-
-BACKENDS: dict[str, Callable[[Fabric], MaterialPoint]] = {
-    "unitcell": UnitCellPoint,
-    "surrogate": surrogate_point,
-}
-
-
-def _factory(backend) -> Callable[[Fabric], MaterialPoint]:
-    """Turn the ``backend`` argument of :func:`run_scenario` into a factory fabric -> point."""
-    if backend is None:
-        return UnitCellPoint
-    if isinstance(backend, str):
-        if backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {sorted(BACKENDS)}, got {backend!r}")
-        return BACKENDS[backend]
-    if not isinstance(backend, type) and hasattr(backend, "respond"):
-        def same(fabric, _point=backend):
-            return _point
-        same.single = True
-        return same
-    if callable(backend):
-        return backend
-    raise ValueError(f"backend must be None, a name in {sorted(BACKENDS)}, a material point with "
-                     f"respond(E1, E2, alpha_hist) or a factory fabric -> material point; got {backend!r}")
-
-
-def _label(point) -> str:
-    return str(getattr(point, "label", type(point).__name__))
-
-
-def respond_free_fill(point, E1: float, alpha_hist, E2_guess: float = 0.0,
-                      search_step: float = 2.5e-4, xtol: float = 1e-12, subdivisions: int = 8):
-    """Response at E1 with the fill free (P2 = 0, scenario 4) for any material point.
-
-    E2 is a root of P2(E1, E2; alpha_hist) = 0, the first one met marching from ``E2_guess``
-    against the sign of P2 (P2 grows with E2 while the yarns are intact), with a step that
-    starts at ``search_step`` and doubles up to 0.05. Near the warp's complete failure P2(E2)
-    is not monotone (it jumps where the warp breaks, and a second root lies on the broken
-    branch), so a step that moves P2 away from zero is re-sampled at ``subdivisions`` points
-    before the march goes on: a narrow root next to the guess is not stepped over. The
-    bracket is closed by Brent's method to ``xtol`` in E2. A fill that carries no force at
-    all (P2 = 0 at the guess, e.g. a broken fill) keeps the guess. Damage evolves from
-    ``alpha_hist`` at every trial E2, so the returned state is that of the root.
-    """
-    from scipy.optimize import brentq
-
-    trials = {}
-
-    def p2(E2):
-        E2 = float(E2)
-        r = point.respond(E1, E2, alpha_hist)
-        value = float(r.P2)
-        if not math.isfinite(value):
-            raise FloatingPointError(f"material point returned P2 = {value} at E1 = {E1}, "
-                                     f"E2 = {E2}, alpha_hist = {tuple(alpha_hist)}")
-        trials[E2] = r
-        return value
-
-    def fail(E2, P2):
-        return RuntimeError(
-            f"free fill: no E2 with P2 = 0 between E2 = {E2_guess:.6g} (P2 = {f_guess:.6g} N/m) "
-            f"and E2 = {E2:.6g} (P2 = {P2:.6g} N/m) at E1 = {E1:.6g}, alpha_hist = "
-            f"{tuple(alpha_hist)}; the material point's P2 must change sign in E2")
-
-    a = float(E2_guess)
-    fa = f_guess = p2(a)
-    if fa == 0.0:
-        return trials[a]
-    direction = -1.0 if fa > 0.0 else 1.0
-    h = float(search_step)
-    bracket = None
-    while bracket is None:
-        if (direction < 0 and a <= E2_MIN) or abs(a - E2_guess) > 1.0:
-            raise fail(a, fa)
-        b = max(a + direction * h, E2_MIN)
-        fb = p2(b)
-        if (fb > 0.0) != (fa > 0.0) or fb == 0.0:
-            bracket = (a, fa, b)
-        elif (fb - fa) * direction <= 0.0:  # P2 moved away from zero: look inside the step
-            x_prev, f_prev = a, fa
-            for x in a + (b - a) * np.arange(1, subdivisions) / subdivisions:
-                fx = p2(x)
-                if (fx > 0.0) != (f_prev > 0.0) or fx == 0.0:
-                    bracket = (x_prev, f_prev, x)
-                    break
-                x_prev, f_prev = x, fx
-        a, fa, h = b, fb, min(2.0 * h, 0.05)
-    lo, f_lo, hi = bracket
-    if trials[hi].P2 == 0.0:
-        return trials[hi]
-    root = brentq(p2, min(lo, hi), max(lo, hi), xtol=xtol)
-    r = trials[root] if root in trials else point.respond(E1, root, alpha_hist)
-    scale = max(abs(f_lo), abs(float(trials[hi].P2)))
-    if abs(float(r.P2)) > 1e-6 * scale:
-        raise RuntimeError(f"free fill: P2 jumps from {f_lo:.6g} to {float(trials[hi].P2):.6g} N/m "
-                           f"between E2 = {lo:.8g} and {hi:.8g} at E1 = {E1:.6g} without a root "
-                           f"(left P2 = {float(r.P2):.6g} N/m at E2 = {root:.8g}); try a smaller step")
-    return r
-
 
 # ----------------------------------------------------------------------------- results
 @dataclass
@@ -376,136 +203,6 @@ def _monotone(driver: _Driver, values, loaded, add) -> bool:
     return False
 
 
-# ----------------------------------------------------------------------------- key points
-def _first(E1, mask):
-    idx = np.flatnonzero(mask)
-    return float(E1[idx[0]]) if idx.size else None
-
-
-def _peaks(E1, P, min_prominence=0.05):
-    """Local maxima of P (interior or at the end of the path) with prominence >= fraction of max."""
-    from scipy.signal import find_peaks
-
-    if P.size == 0 or np.max(P) <= 0.0:
-        return []
-    padded = np.concatenate(([-np.inf], P, [-np.inf]))
-    idx, _ = find_peaks(padded, prominence=min_prominence * float(np.max(P)))
-    return [{"E1": float(E1[i - 1]), "P": float(P[i - 1])} for i in idx]
-
-
-def path_key_points(data: dict[str, np.ndarray]) -> dict:
-    """Peak of P1 (and every prominent local peak of P1 and P2), damage onset (first E1 with
-    alpha_i < 1) and complete failure (first E1 with alpha_i <= ALPHA_BROKEN) for each yarn."""
-    E1, P1, P2 = data["E1"], data["P1"], data["P2"]
-    i = int(np.argmax(P1))
-    kp = {
-        "peak_P1": {"E1": float(E1[i]), "P1": float(P1[i])},
-        "peaks_P1": [{"E1": p["E1"], "P1": p["P"]} for p in _peaks(E1, P1)],
-        "peaks_P2": [{"E1": p["E1"], "P2": p["P"]} for p in _peaks(E1, P2)],
-        "damage_onset": {}, "complete_failure": {}, "E1_max": float(E1[-1]),
-    }
-    if np.max(P2) > 0.0:
-        j = int(np.argmax(P2))
-        kp["peak_P2"] = {"E1": float(E1[j]), "P2": float(P2[j])}
-    for k, yarn in ((1, "warp"), (2, "fill")):
-        a = data[f"alpha{k}"]
-        kp["damage_onset"][yarn] = _first(E1, a < 1.0 - 1e-12)
-        kp["complete_failure"][yarn] = _first(E1, a <= ALPHA_BROKEN)
-    return kp
-
-
-def _free_fill_key_points(data) -> dict:
-    """Scenario 4: the largest transverse contraction (where E2 turns back, Fig. 3-5)."""
-    alive = data["alpha1"] > ALPHA_BROKEN
-    E2 = np.where(alive, data["E2"], np.inf)
-    j = int(np.argmin(E2))
-    return {"E2_min": {"E1": float(data["E1"][j]), "E2": float(data["E2"][j])}}
-
-
-def _interp_P1(data, E1):
-    E, P = data["E1"], data["P1"]
-    return float(np.interp(E1, E, P)) if E[0] <= E1 <= E[-1] else None
-
-
-# ----------------------------------------------------------------------------- scenarios
-def check_step(step) -> float:
-    """``step`` as a float, or a ValueError unless it is a finite number in (0, E1_CAP]."""
-    try:
-        s = float(step)
-    except (TypeError, ValueError):
-        raise ValueError(f"step must be a positive number, got {step!r}") from None
-    if not math.isfinite(s) or s <= 0.0 or s > E1_CAP:
-        raise ValueError(f"step must be a finite number in (0, {E1_CAP}], got {step!r}")
-    return s
-
-
-def estimate_steps(name: str, fabric: Fabric | None, step: float, unload_at: float = UNLOAD_E1) -> int:
-    """An upper bound of the E1 steps (material-point solves) scene ``name`` takes at ``step``,
-    known before it runs: its CSV rows plus, for load-unload, the reference monotone path.
-
-    A monotone path (:func:`_path_steps`) ends EXTRA_STEPS after the loaded yarns' complete
-    failure. load-unload adds its load and unload legs to unload_at and the reference path;
-    bending runs two paths. The bound is about 1.4 times the steps taken for Zylon AS."""
-    path = _path_steps(name, fabric, step)
-    if name == "load-unload":
-        leg = math.floor(unload_at / step + 1e-9) + 2  # the grid and unload_at itself
-        return leg + (leg - 1) + 2 * path
-    return 2 * path if name == "bending" else path
-
-
-def _path_steps(name: str, fabric: Fabric | None, step: float) -> int:
-    """Steps of one monotone path, at most: complete failure of the loaded yarns comes at the
-    latest at the first grid point at or beyond E1 = E_fail = ((mu_complete L / w)^2 - 1) / 2
-    (a yarn is at least as stretched as its projection, lambda w / L; mu_complete from the
-    damage law; the crimp is pulled out before, so the path ends earlier), then EXTRA_STEPS
-    more; and at E1_CAP in any case."""
-    base = zylon_as("max") if fabric is None else fabric
-    law = base.damage
-    E_fail = [0.5 * ((law.mu_complete(y.mu_crit) * y.L / y.w) ** 2 - 1.0) for y in base.yarns]
-    E_end = max(E_fail[i] for i in _LOADED[name])
-    return min(math.ceil(E_end / step - 1e-9) + EXTRA_STEPS, math.floor(E1_CAP / step + 1e-9)) + 1
-
-
-def check_budget(name: str, fabric: Fabric | None, step: float, max_steps: int | None = MAX_STEPS,
-                 unload_at: float = UNLOAD_E1) -> int:
-    """:func:`estimate_steps`, or a ValueError if it exceeds ``max_steps`` (None: no limit) that
-    gives the estimate, its time and the smallest step within the limit."""
-    n = estimate_steps(name, fabric, step, unload_at)
-    if max_steps is not None and n > max_steps:
-        smallest = step * n / max_steps
-        raise ValueError(
-            f"--step {step:g}: scene {name} would take up to {n:,} steps (material-point solves), "
-            f"about {_duration(n * 0.018)} at ~18 ms each, more than the limit of {max_steps:,}; "
-            f"use --step {_round_up(smallest)} or larger (default {DEFAULT_STEP:g}), or raise the limit "
-            f"with --max-steps")
-    return n
-
-
-def _duration(seconds: float) -> str:
-    """``seconds`` in the largest unit that gives at least 2 of it."""
-    for unit, size in (("days", 86400.0), ("hours", 3600.0), ("minutes", 60.0)):
-        if seconds >= 2 * size:
-            return f"{seconds / size:.0f} {unit}"
-    return f"{seconds:.0f} s"
-
-
-def _round_up(x: float) -> str:
-    """``x`` rounded up to two significant digits, as text."""
-    exponent = math.floor(math.log10(x)) - 1
-    return f"{math.ceil(x / 10.0 ** exponent - 1e-9) * 10.0 ** exponent:.2g}"
-
-
-def bending_bounds(fabric: Fabric | None = None) -> tuple[float, float]:
-    """Upper and lower bound of the fill's bending stiffness B2 (N m^2) for the bending scene.
-
-    Table 1 of the thesis (``fabric=None``, Zylon AS); for another fabric its fill's B0 is the
-    upper bound and B0 / BENDING_RATIO the lower (section 3.2: "five times the minimum").
-    """
-    if fabric is None:
-        return zylon_as("max").fill.B0, zylon_as("min").fill.B0
-    return fabric.fill.B0, fabric.fill.B0 / BENDING_RATIO
-
-
 def run_scenario(name: str, fabric: Fabric | None = None, step: float = DEFAULT_STEP,
                  backend=None, progress: bool = True, csv_path=None,
                  unload_at: float = UNLOAD_E1,
@@ -657,123 +354,3 @@ def _bending(make, base, bounds, step, loaded, rec):
     extra = {"B2_upper": runs["upper"][1], "B2_lower": runs["lower"][1], "P1_lower_over_upper": compare,
              "cap_reached": runs["upper"][1]["cap_reached"] or runs["lower"][1]["cap_reached"]}
     return point, rec.arrays(), extra
-
-
-# ----------------------------------------------------------------------------- report
-def _fmt(E):
-    return "-" if E is None else f"{E:.4f}"
-
-
-def _path_lines(kp, indent="  ") -> list[str]:
-    lines = [f"{indent}peak of P1: E1 = {kp['peak_P1']['E1']:.4f}, P1 = {kp['peak_P1']['P1'] / 1e3:.2f} kN/m"]
-    if len(kp["peaks_P1"]) > 1:
-        lines.append(indent + "peaks of P1: " + "; ".join(
-            f"E1 = {p['E1']:.4f}, P1 = {p['P1'] / 1e3:.2f} kN/m" for p in kp["peaks_P1"]))
-    if "peak_P2" in kp:
-        pk = kp["peak_P2"]
-        lines.append(f"{indent}peak of P2: E1 = {pk['E1']:.4f}, P2 = {pk['P2'] / 1e3:.2f} kN/m")
-    for yarn in ("warp", "fill"):
-        on, off = kp["damage_onset"][yarn], kp["complete_failure"][yarn]
-        if on is None:
-            lines.append(f"{indent}{yarn}: no damage up to E1 = {kp['E1_max']:.4f}")
-        else:
-            lines.append(f"{indent}{yarn}: damage onset at E1 = {_fmt(on)}, complete failure at "
-                         f"E1 = {_fmt(off) if off is not None else '- (not reached)'}")
-    if "E2_min" in kp:
-        m = kp["E2_min"]
-        lines.append(f"{indent}largest contraction: E2 = {m['E2']:.4f} at E1 = {m['E1']:.4f}")
-    if kp.get("cap_reached"):
-        lines.append(f"{indent}stopped at the cap E1 = {E1_CAP} before complete failure")
-    return lines
-
-
-def format_key_points(result: ScenarioResult) -> str:
-    """The key points of a scene as printed by the command line."""
-    kp = result.key_points
-    head = f"{result.name} ({result.fabric.name}, {result.backend}, step {result.step:g}, {len(result)} rows)"
-    lines = [head]
-    if result.name == "bending":
-        for bound in ("upper", "lower"):
-            k = kp[f"B2_{bound}"]
-            lines.append(f" B2 = {k['B2'] * 1e6:.4f} N mm^2 ({bound} bound):")
-            lines += _path_lines(k)
-        for label, c in kp["P1_lower_over_upper"].items():
-            lines.append(f" P1(lower B2) / P1(upper B2) at E1 = {c['E1']:.4f}: {c['ratio']:.3f}")
-        return "\n".join(lines)
-    lines += _path_lines(kp)
-    if result.name == "load-unload":
-        u = kp["unload_at"]
-        lines.append(f"  unloaded at E1 = {u['E1']:.4f} (P1 = {u['P1'] / 1e3:.2f} kN/m, "
-                     f"alpha1 = {u['alpha1']:.4f})")
-        lines.append(f"  residual P1 at zero strain: {kp['residual_P1_at_zero_strain']:.3g} N/m")
-        dev = kp["reload_max_deviation_P1"]
-        lines.append(f"  reload vs first loading beyond the unload point: max |dP1| = "
-                     f"{'-' if dev is None else f'{dev:.3g}'} N/m")
-    return "\n".join(lines)
-
-
-def write_key_points(result: ScenarioResult, path) -> None:
-    Path(path).write_text(json.dumps(result.key_points, indent=2) + "\n")
-
-
-# ----------------------------------------------------------------------------- plot
-def _alpha_axis(ax, data, style="--", lw=1.2, label_suffix=""):
-    ax2 = ax.twinx()
-    ax2.plot(data["E1"], data["alpha1"], "C0" + style, lw=lw, label="alpha1 (warp)" + label_suffix)
-    ax2.plot(data["E1"], data["alpha2"], "C1" + style, lw=lw, label="alpha2 (fill)" + label_suffix)
-    ax2.set_ylim(-0.05, 1.1)
-    ax2.set_ylabel("damage parameter alpha (-)")
-    return ax2
-
-
-def plot_scenario(result: ScenarioResult, path) -> None:
-    """PNG in the style of the thesis's Figs. 3-1 to 3-6: P1, P2 (kN/m) against E1 with alpha
-    on a right axis; E2 against E1 as a second panel for scenario 4."""
-    from matplotlib.figure import Figure
-
-    name, d = result.name, result.data
-    two_panels = name in ("uniaxial-stress", "bending")
-    fig = Figure(figsize=(11, 4.5) if two_panels else (6.5, 4.5), layout="constrained")
-    axes = fig.subplots(1, 2) if two_panels else [fig.subplots()]
-    ax = axes[0]
-    if name == "load-unload":
-        ref = result.reference
-        ax.plot(ref["E1"], ref["P1"] / 1e3, color="0.6", lw=0.8, ls=":", label="monotone loading")
-        for leg, lw in (("load", 2.8), ("unload", 1.0), ("reload", 1.0)):
-            s = result.select("leg", leg)
-            ls = "-" if leg != "unload" else "--"
-            ax.plot(s["E1"], s["P1"] / 1e3, "C0", lw=lw, ls=ls, label=f"P1, {leg}")
-            ax.plot(s["E1"], s["P2"] / 1e3, "C1", lw=lw, ls=ls, label=f"P2, {leg}")
-        ax2 = _alpha_axis(ax, d, style=":")
-    elif name == "bending":
-        kp = result.key_points
-        for bound, ls in (("upper", "-"), ("lower", "--")):
-            B2 = kp[f"B2_{bound}"]["B2"]
-            s = result.select("B2", B2)
-            tag = f"B2 = {B2 * 1e6:.4f} N mm^2 ({bound})"
-            ax.plot(s["E1"], s["P1"] / 1e3, "C0", ls=ls, lw=1.8, label=f"P1, {tag}")
-            axes[1].plot(s["E1"], s["E2"], "C2", ls=ls, lw=1.8, label=tag)
-        ax2 = _alpha_axis(ax, result.select("B2", kp["B2_upper"]["B2"]), style=":",
-                          label_suffix=", upper B2")
-    else:
-        ax.plot(d["E1"], d["P1"] / 1e3, "C0", lw=1.8, label="P1 (warp)")
-        if name != "uniaxial-stress":
-            ax.plot(d["E1"], d["P2"] / 1e3, "C1", lw=1.8, label="P2 (fill)")
-        ax2 = _alpha_axis(ax, d)
-        if name == "uniaxial-stress":
-            axes[1].plot(d["E1"], d["E2"], "C2", lw=1.8, label="E2 (P2 = 0)")
-    ax.set_xlabel("membrane strain E1 (-)")
-    ax.set_ylabel("membrane stress P (kN/m)")
-    ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]))
-    ax.set_title(_TITLES[name], fontsize=10)
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
-    if two_panels:
-        axes[1].axhline(0.0, color="0.7", lw=0.6)
-        axes[1].set_xlabel("membrane strain E1 (-)")
-        axes[1].set_ylabel("membrane strain E2 (-)")
-        axes[1].set_title("transverse strain with P2 = 0 (Fig. 3-5)", fontsize=10)
-        axes[1].legend(fontsize=7)
-    fig.suptitle(f"{result.fabric.name}, {result.backend}, step {result.step:g}", fontsize=8)
-    fig.savefig(path, dpi=120)

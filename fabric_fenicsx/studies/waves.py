@@ -1,5 +1,5 @@
-"""The speed of the first stress wave along the warp and along the fill (issue 15; thesis
-Sec. 4.3: "the stress wave runs faster along the less crimped fill yarns").
+"""The speed of the first stress wave along the warp and along the fill (docs/validation.md;
+thesis Sec. 4.3: "the stress wave runs faster along the less crimped fill yarns").
 
 A short run of XY0 (warp along x) on a uniform mesh along the yarns writes its displacement
 every microsecond; along the warp axis through the impact point (the nodes on y = 0, x > 0)

@@ -1,4 +1,4 @@
-"""Reliability of the material point (issue 14, items 3, 4 and 9).
+"""Reliability of the material point (docs/reliability.md, its items 3, 4 and 9).
 
 * item 3: the unit cell solves the lower bending bound at the table nodes where Newton with a
   line search on the intact yarn's scale stalled (``UnitCell._solve``, path 3);

@@ -1,4 +1,4 @@
-"""The chapter-4 studies (issue 15): the ballistic-limit bisection on stand-in functions, which
+"""The chapter-4 studies (docs/validation.md): the ballistic-limit bisection on stand-in functions, which
 runs each study makes, the thesis's findings from the numbers, parallel runs that equal serial
 ones, and the ``study`` command on tiny runs."""
 import json

@@ -45,7 +45,7 @@ def test_the_command_on_a_small_elastic_impact_whose_twins_stay_together(tmp_pat
     1.6e-10 of the fabric's kinetic energy at the end), unlike the Y90 scene's 4 mm mesh, whose
     difference grows by 1e-2 over 0.8 ms (docs/mesh_independence.md)."""
     from fabric_fenicsx.cli import main
-    from fabric_fenicsx.studies.faults import TINY_SCENE
+    from tests.tools.faults import TINY_SCENE
 
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY_SCENE)

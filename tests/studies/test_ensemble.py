@@ -70,7 +70,7 @@ def test_a_failed_member_is_reported_with_its_exit_code_and_the_others_are_kept(
 
 def test_the_command_on_a_small_elastic_impact_whose_members_agree(tmp_path, capsys):
     from fabric_fenicsx.cli import main
-    from fabric_fenicsx.studies.faults import TINY_SCENE
+    from tests.tools.faults import TINY_SCENE
 
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY_SCENE)

@@ -1,4 +1,4 @@
-"""Analytic verification of the explicit dynamics: Smith's transverse impact on a strip (issue 4).
+"""Analytic verification of the explicit dynamics: Smith's transverse impact on a strip.
 
 Closed form (fabric_fenicsx.studies.smith) checked against independent relations (jump conditions at the
 fronts, the quartic obtained by squaring Smith's relation, the small-strain expansion); the

@@ -1,4 +1,4 @@
-"""The stability study (fabric_fenicsx.studies.stability, issue 4): its fabric variants, outcome
+"""The stability study (fabric_fenicsx.studies.stability, docs/stability.md): its fabric variants, outcome
 parsing and verdicts, and its fast cases run short on the coarse Y90 mesh.
 
 Each run asserts an outcome that could be false: a completed run has finite fields and an

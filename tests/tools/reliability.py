@@ -1,5 +1,5 @@
-"""``python -m fabric_fenicsx.studies.reliability``: reliability of the material point and of
-impact runs at the lower bending bound (issue 14).
+"""``python -m tests.tools.reliability`` (from the checkout's root): reliability of the material
+point and of impact runs at the lower bending bound; writes docs/reliability.md.
 
 One command writes the whole report (:data:`CANONICAL_COMMAND`):
 
@@ -23,9 +23,8 @@ One command writes the whole report (:data:`CANONICAL_COMMAND`):
   57.3 and 123.69 m/s, each by the command line into ``OUT/min-<v>`` (a run whose
   ``summary.json`` holds the same settings and code version is read, not run again; ``--rerun``
   runs it again).
-* **bad inputs and faults**: the tables of :mod:`fabric_fenicsx.studies.faults`
-  (``bad_input_rows()``, ``fault_rows()``), written by another part of the study, if that
-  module exists.
+* **bad inputs and faults**: the tables of :mod:`tests.tools.faults`
+  (``bad_input_rows()``, ``fault_rows()``), if that module can be imported.
 
 Each section's numbers are kept in ``OUT/reliability.json`` and reused when asked again with
 the same settings by the same code (:func:`fabric_fenicsx.provenance.load_if_same`);
@@ -52,7 +51,7 @@ from fabric_fenicsx.provenance import code_fingerprint, model_version
 __all__ = ["CANONICAL_COMMAND", "BOUNDS", "IMPACT_VELOCITIES", "sample_states", "build_tables",
            "fuzz", "near_zero_damage", "impact_run", "faults_sections", "write_report", "main"]
 
-CANONICAL_COMMAND = (".venv/bin/python -m fabric_fenicsx.studies.reliability --out out/reliability "
+CANONICAL_COMMAND = (".venv/bin/python -m tests.tools.reliability --out out/reliability "
                      "--doc docs/reliability.md")
 BOUNDS = ("max", "min")
 IMPACT_VELOCITIES = (57.3, 123.69)
@@ -298,10 +297,10 @@ def _impact_record(s: dict, meta: dict, reused: bool) -> dict:
 
 # ============================================================================ faults
 def faults_sections() -> tuple[str, str]:
-    """Markdown of the bad-input table and the fault list (:mod:`fabric_fenicsx.studies.faults`),
+    """Markdown of the bad-input table and the fault list (:mod:`tests.tools.faults`),
     or "(not yet run)" for each if that module does not exist or fails."""
     try:
-        from fabric_fenicsx.studies import faults
+        from tests.tools import faults
     except ImportError:
         return "(not yet run)", "(not yet run)"
     out = []
@@ -428,7 +427,7 @@ def _fmt(x, digits=4):
 def write_report(res: dict, doc: Path) -> None:
     """docs/reliability.md from the study's results."""
     bad_md, faults_md = faults_sections()
-    L = ["# Reliability (issue 14)", "",
+    L = ["# Reliability", "",
          f"Written by `{CANONICAL_COMMAND}` on {res['date']} ({res['machine']}); code "
          f"{res['code']['git_head']}, model version {res['code']['model_version']} (sections "
          f"computed with model version(s) {', '.join(res.get('versions', [])) or '-'}). Numbers "
@@ -637,8 +636,8 @@ equal the cached ones bit for bit, so `tiles.FORMAT_VERSION` stays."""
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m fabric_fenicsx.studies.reliability",
-                                     description="Reliability study of the material point (issue 14).")
+    parser = argparse.ArgumentParser(prog="python -m tests.tools.reliability",
+                                     description="Reliability study of the material point.")
     add_arguments(parser)
     return run(parser.parse_args(argv))
 
