@@ -7,6 +7,7 @@ projectile.
 - :mod:`.terms`: weak-form terms (yarn stresses, isotropic shear, your own);
 - :mod:`.yarn_stress`: the surrogate at the quadrature points (``YarnStress``);
 - :mod:`.explicit`: central difference with a lumped mass and energy bookkeeping;
+- :mod:`.timestep`: the one stable-time-step rule (damped Courant limit);
 - :mod:`.projectile`: rigid projectile and penalty contact with friction.
 
 Names are re-exported lazily: ``import fabric_fenicsx.fem`` alone does not load DOLFINx.
@@ -16,7 +17,8 @@ from fabric_fenicsx._lazy import lazy_exports
 _EXPORTS = {
     "MeshSpec": "mesh", "load_mesh": "mesh", "uniform_square": "mesh", "edge_dofs": "mesh",
     "min_cell_size": "mesh", "Membrane": "membrane", "yarn_directions": "membrane",
-    "MembraneTerm": "terms", "YarnTerm": "terms", "IsotropicShear": "terms",
+    "MembraneTerm": "terms", "FollowsIntegrity": "terms", "YarnTerm": "terms", "IsotropicShear": "terms",
+    "HourglassControl": "terms", "stable_dt": "timestep",
     "YarnStress": "yarn_stress", "straight_yarn_modulus": "yarn_stress",
     "CentralDifference": "explicit", "EnergyRecord": "explicit", "LinearYarnMaterial": "explicit",
     "Projectile": "projectile", "ProjectileState": "projectile", "PenaltyContact": "projectile",

@@ -3,7 +3,11 @@
 - :mod:`.scene`: the scene schema and its validation (no DOLFINx);
 - :mod:`.setup`: fabric, mesh, weak-form terms, projectile from a scene;
 - :mod:`.simulation`: :class:`ImpactSimulation`, the step loop, and :func:`run_impact`;
-- :mod:`.timestep`: the damped stable time step and when it is re-checked;
+- :mod:`.term_specs`: the weak-form terms a scene names (``membrane.terms``);
+- :mod:`.sizing`: a run's size estimated from its scene, too large a scene refused;
+- :mod:`.lock`: one writer per output folder;
+- :mod:`.summary`: summary.json; :mod:`.trouble`: messages of a run stopped on trouble;
+- :mod:`.timestep`: when the stable time step is re-checked (the rule: ``fem.timestep``);
 - :mod:`.ledger`: the energy ledger and the named reduction over ranks;
 - :mod:`.removal`: deletion and erosion of cells, pieces cut loose;
 - :mod:`.chatter`: statistics of the contact force;
@@ -18,7 +22,7 @@ _EXPORTS = {
     "ImpactSimulation": "simulation", "ImpactError": "simulation", "run_impact": "simulation",
     "HISTORY_COLUMNS": "simulation", "build_fabric": "setup", "EnergyLedger": "ledger",
     "stable_dt": "timestep", "CellRemoval": "removal", "chatter_statistics": "chatter",
-    "ImpactOutput": "output",
+    "ImpactOutput": "output", "estimate": "sizing", "check_size": "sizing", "FolderLock": "lock",
 }
 __all__ = sorted(_EXPORTS)
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -239,6 +239,62 @@ class ImpactSimulation:
                               "a table problem): check the surrogate with `fabric-fenicsx surrogate`")
         return self.cd.stable_dt(material_modulus=material_modulus)
 
+    # ------------------------------------------------------------------ the step loop
+    def run(self) -> dict:
+        """Integrate until perforation, rebound, the projectile held (``run.stop_when_held``) or the
+        time limit; write the output; return the summary (identical on every rank)."""
+        sc, cd = self.scene, self.cd
+        t_wall0 = time.perf_counter()
+        loop = _Loop(dt=self.dt, dt_shown=self.dt, z_prev=self.state.z, last_progress=t_wall0,
+                     next_frame=0.0 if sc.output.xdmf_interval > 0 else math.inf)
+        forces = ([], [])          # contact force history (rank 0) for the chatter statistics
+        while True:
+            t_n = cd.time
+            f_ext, f_p, info, uz_c = self._timed("contact", self._contact_and_centre, loop.dt)
+            energy = self._fabric_step(loop, t_n, f_ext)
+            sums, maxima, check, projectile = self._timed(
+                "bookkeeping", self._bookkeeping, loop, t_n, f_p, info, uz_c, energy, forces)
+            self._timed("output", self._write, loop, t_n, energy, *projectile)
+            self._check_trouble(loop, t_n, energy, projectile[0], maxima)
+            loop.step += 1
+            loop.dt_prev = loop.dt
+            self._next_dt(loop, check, maxima["modulus"])
+            self._progress(loop, sums["contact_force"])
+            end_reason = self._end_reason(loop, sums["n_attached"])
+            if end_reason:
+                break
+        wall = time.perf_counter() - t_wall0
+        return self._finish(end_reason, loop.step, loop.dt, wall, *map(np.array, forces), energy)
+
+    def _timed(self, phase: str, fn, *args):
+        """``fn(*args)``, its wall time added to the clock's ``phase``."""
+        t0 = time.perf_counter()
+        result = fn(*args)
+        setattr(self.clock, phase, getattr(self.clock, phase) + time.perf_counter() - t0)
+        return result
+
+    def _contact_and_centre(self, dt: float):
+        """:meth:`_contact` and the central node's displacement along z at t_n (this rank's)."""
+        f_ext, f_p, info = self._contact(dt)
+        uz_c = float(self.cd.u[3 * self.centre_node + 2]) if self.centre_node >= 0 else 0.0
+        return f_ext, f_p, info, uz_c
+
+    def _bookkeeping(self, loop: _Loop, t_n: float, f_p, info, uz_c: float, energy, forces):
+        """After the fabric's step: cell removal, the collective reduction, the ledger, the
+        projectile to t_n + dt. Returns (sums, maxima, whether dt was checked, (KE_p, v_full,
+        W_contact) of the projectile at t_n)."""
+        removed = self.removal.select()
+        if removed[0].size or removed[1].size:
+            self.removal.remove(*removed)
+        check = check_due(loop.step, self.ledger.step_touch, self.scene.run.dt_check_interval)
+        sums, maxima = self._reduce(loop, t_n, f_p, info, uz_c, removed, check)
+        self._book(loop, t_n, sums, maxima)
+        projectile = self._projectile(loop, sums["contact_force"], energy)
+        if self.rank0:
+            forces[0].append(t_n)
+            forces[1].append(sums["contact_force"])
+        return sums, maxima, check, projectile
+
     # ------------------------------------------------------------------ one step's parts
     def _contact(self, dt: float):
         """Contact forces at t_n on this rank's live owned nodes near the projectile."""
@@ -455,62 +511,6 @@ class ImpactSimulation:
         if run.max_steps and loop.step >= run.max_steps:
             return "max_steps"
         return None
-
-    # ------------------------------------------------------------------ run
-    def run(self) -> dict:
-        """Integrate until perforation, rebound, the projectile held (``run.stop_when_held``) or the
-        time limit; write the output; return the summary (identical on every rank)."""
-        sc, cd = self.scene, self.cd
-        t_wall0 = time.perf_counter()
-        loop = _Loop(dt=self.dt, dt_shown=self.dt, z_prev=self.state.z, last_progress=t_wall0,
-                     next_frame=0.0 if sc.output.xdmf_interval > 0 else math.inf)
-        forces = ([], [])          # contact force history (rank 0) for the chatter statistics
-        while True:
-            t_n = cd.time
-            f_ext, f_p, info, uz_c = self._timed("contact", self._contact_and_centre, loop.dt)
-            energy = self._fabric_step(loop, t_n, f_ext)
-            sums, maxima, check, projectile = self._timed(
-                "bookkeeping", self._bookkeeping, loop, t_n, f_p, info, uz_c, energy, forces)
-            self._timed("output", self._write, loop, t_n, energy, *projectile)
-            self._check_trouble(loop, t_n, energy, projectile[0], maxima)
-            loop.step += 1
-            loop.dt_prev = loop.dt
-            self._next_dt(loop, check, maxima["modulus"])
-            self._progress(loop, sums["contact_force"])
-            end_reason = self._end_reason(loop, sums["n_attached"])
-            if end_reason:
-                break
-        wall = time.perf_counter() - t_wall0
-        return self._finish(end_reason, loop.step, loop.dt, wall, *map(np.array, forces), energy)
-
-    def _timed(self, phase: str, fn, *args):
-        """``fn(*args)``, its wall time added to the clock's ``phase``."""
-        t0 = time.perf_counter()
-        result = fn(*args)
-        setattr(self.clock, phase, getattr(self.clock, phase) + time.perf_counter() - t0)
-        return result
-
-    def _contact_and_centre(self, dt: float):
-        """:meth:`_contact` and the central node's displacement along z at t_n (this rank's)."""
-        f_ext, f_p, info = self._contact(dt)
-        uz_c = float(self.cd.u[3 * self.centre_node + 2]) if self.centre_node >= 0 else 0.0
-        return f_ext, f_p, info, uz_c
-
-    def _bookkeeping(self, loop: _Loop, t_n: float, f_p, info, uz_c: float, energy, forces):
-        """After the fabric's step: cell removal, the collective reduction, the ledger, the
-        projectile to t_n + dt. Returns (sums, maxima, whether dt was checked, (KE_p, v_full,
-        W_contact) of the projectile at t_n)."""
-        removed = self.removal.select()
-        if removed[0].size or removed[1].size:
-            self.removal.remove(*removed)
-        check = check_due(loop.step, self.ledger.step_touch, self.scene.run.dt_check_interval)
-        sums, maxima = self._reduce(loop, t_n, f_p, info, uz_c, removed, check)
-        self._book(loop, t_n, sums, maxima)
-        projectile = self._projectile(loop, sums["contact_force"], energy)
-        if self.rank0:
-            forces[0].append(t_n)
-            forces[1].append(sums["contact_force"])
-        return sums, maxima, check, projectile
 
     # ------------------------------------------------------------------ output pieces
     def _history_row(self, t, energy, KE_p, vz_full, W_contact, dt) -> dict:
