@@ -193,3 +193,22 @@ def test_the_rule_against_its_formula():
         args = dict(modulus=K, areal_density=rho, L_min=L, beta=beta, safety=0.8) | bad
         with pytest.raises(ValueError):
             stable_dt(**args)
+
+
+@serial_only
+def test_the_readme_term_named_in_a_scene_file_runs(tmp_path):
+    """The README's example term, copied from the README itself, in a file named by the scene."""
+    import re
+    from pathlib import Path
+
+    from fabric_fenicsx.cli import main
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    code = next(block for block in re.findall(r"```python\n(.*?)```", readme, re.S)
+                if "class Pretension(MembraneTerm)" in block)
+    (tmp_path / "pretension.py").write_text(code)
+    scene = write_scene(tmp_path, t_end=3e-5, terms='{class = "pretension.py:Pretension", T = 200.0}')
+    assert main(["impact", str(scene), "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["energies"]["membrane_terms"]["pretension"] > 0.0
+    assert summary["energies"]["terms_dissipation"] == 0.0
