@@ -9,6 +9,10 @@ tiles the surrogate had to solve (a cold cache) are shown apart: they are a one-
     .venv/bin/python benchmarks/bench_impact.py [--scene demos/scenes/y90.toml] [--set KEY=VALUE ...]
         [--reference KEY=VALUE ...]
 
+Then it times, in the same process and on the same mesh, the floor (benchmarks/floor_step.py):
+a minimal compiled explicit step of a membrane with the same cells and quadrature points, linear
+yarns, and prints the ratio product step / floor step, the figure the speed work moves.
+
 With ``--reference`` the same scene also runs with those keys changed (for example the settings
 before the reduced element, docs/mesh_independence.md: ``--reference mesh.element=full --reference mesh.kind=graded --reference
 mesh.h_centre=1.41e-3``), and the ratio of the two runs' wall times (without surrogate tile
@@ -22,7 +26,9 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from fabric_fenicsx.impact.simulation import run_impact
+from floor_step import floor_seconds_per_step
+
+from fabric_fenicsx.impact.simulation import ImpactSimulation
 from fabric_fenicsx.impact.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,8 +55,14 @@ def bench(scene):
     """Run ``scene`` in a temporary folder and print its timings; return its summary."""
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
-        s = run_impact(scene, out, verbose=False)
+        sim = ImpactSimulation(scene, out, verbose=False)
+        try:
+            s = sim.run()
+        finally:
+            sim.output.close()
         total = time.perf_counter() - t0
+        floor = (floor_seconds_per_step(sim.membrane, sim.cd.mass, sim.k_straight, s["dt"])
+                 if MPI.COMM_WORLD.size == 1 else None)
     if MPI.COMM_WORLD.rank:
         return s
     per = s["time_per_step_s"]
@@ -71,7 +83,11 @@ def bench(scene):
     for key, label in labels.items():
         step_sum += per[key]
         print(f"    {1e3 * per[key]:8.3f}  {label}")
-    print(f"    {1e3 * step_sum:8.3f}  total per step ({1 / step_sum:.0f} steps/s)")
+    print(f"    {1e3 * step_sum:8.3f}  total per step ({1 / step_sum:.0f} steps/s, "
+          f"{1e6 * step_sum / s['n_cells']:.2f} us per cell)")
+    if floor is not None:
+        print(f"  floor: a minimal compiled step of the same mesh ({s['n_cells']} cells, linear yarns, "
+              f"benchmarks/floor_step.py) {1e3 * floor:.4f} ms; product / floor = {step_sum / floor:.0f}")
     ours, dolfinx = per["constitutive"] + per["contact"], per["strain"] + per["assembly"]
     print(f"  target: constitutive + contact {1e3 * ours:.3f} ms against strain + assembly "
           f"(DOLFINx) {1e3 * dolfinx:.3f} ms: ratio {ours / dolfinx:.2f} (target <= 1)")
