@@ -213,3 +213,39 @@ def test_table4_tiny_run_writes_the_table_and_reuses_its_runs(tmp_path, capsys):
     assert (tmp_path / "doc" / "table4.png").read_bytes()[:4] == b"\x89PNG"
     assert table4.main(argv) == 0
     assert "table4: running" not in capsys.readouterr().out
+
+
+# ----------------------------------------------------------------------------- negative numbers
+def test_a_negative_number_after_an_option_is_its_value_in_every_subcommand():
+    """argparse takes '-1e-12' for an option ("expected one argument"); the command line joins
+    it onto the option before it, for every subcommand, and leaves everything else alone."""
+    from fabric_fenicsx.cli import build_parser, join_negative_values
+
+    parser = build_parser()
+    assert join_negative_values(parser, ["ensemble", "s.toml", "--perturbation", "-1e-12", "-n", "-3"]) == \
+        ["ensemble", "s.toml", "--perturbation=-1e-12", "-n=-3"]
+    assert join_negative_values(parser, ["static", "--scenario", "equibiaxial", "--step", "-1e-3"])[-1] == "--step=-1e-3"
+    assert join_negative_values(parser, ["divergence", "s.toml", "--pert", "-2e-12"])[-1] == "--pert=-2e-12"
+    untouched = ["ensemble", "s.toml", "--quiet", "-1e-3", "--set", "a.b=-1", "--", "--out", "-1"]
+    assert join_negative_values(parser, untouched) == untouched      # a flag takes no value; after '--'
+    args = parser.parse_args(join_negative_values(parser, ["divergence", "s.toml", "--perturbation", "-1e-12"]))
+    assert args.perturbation == -1e-12
+    args = parser.parse_args(join_negative_values(parser, ["ensemble", "s.toml", "--perturbation", "-5e-13"]))
+    assert args.perturbation == -5e-13
+
+
+def test_a_negative_perturbation_is_accepted_and_a_negative_step_meets_our_own_message(tmp_path, capsys):
+    """``--perturbation -1e-12`` (a twin or members below the velocity: allowed, 0 < |p| < 1e-3)
+    gets past the parser to the command's checks; ``static --step -1e-3`` gets our message."""
+    scene = str(ROOT / "demos" / "scenes" / "y90.toml")
+    assert main(["ensemble", scene, "--perturbation", "-1e-12", "-n", "1", "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "expected one argument" not in err and err.strip() == \
+        "fabric-fenicsx ensemble: --members must be at least 2, got 1"          # only the member count refused
+    assert main(["divergence", scene, "--perturbation", "-1e-2", "--out", str(tmp_path / "d")]) == 2
+    assert "--perturbation must be a small relative change, 0 < |p| < 1e-3, got -0.01" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["static", "--scenario", "equibiaxial", "--step", "-1e-3", "--out", str(tmp_path / "s")])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "expected one argument" not in err
+    assert "argument --step: step must be a finite number in (0, 0.15], got '-1e-3'" in err

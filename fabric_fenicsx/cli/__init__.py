@@ -51,16 +51,75 @@ class Terminated(KeyboardInterrupt):
     ending a job: handled as an interruption (files closed, locks released)."""
 
 
+_MAIN_PID = os.getpid()
+
+
 def _terminate(signum, frame):
+    """SIGTERM in the command's own process: an interruption. In a forked child (the surrogate's
+    tile workers, whose pool ends them with SIGTERM) the default action, at once: an exception
+    raised there could leave a pool's queue lock held and hang the run."""
+    if os.getpid() != _MAIN_PID:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return
     raise Terminated()
+
+
+def _is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def _value_options(parser: argparse.ArgumentParser, command: str) -> set[str]:
+    """The option strings of subcommand ``command`` that take one value (``--step``, ``-n``)."""
+    for action in parser._subparsers._group_actions if parser._subparsers else ():
+        sub = getattr(action, "choices", {}).get(command)
+        if sub is not None:
+            return {o for a in sub._actions if a.option_strings and a.nargs is None
+                    for o in a.option_strings}
+    return set()
+
+
+def join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``argv`` with each negative number that follows an option taking a value joined onto it
+    (``--perturbation -1e-12`` -> ``--perturbation=-1e-12``). argparse takes a token that starts
+    with '-' and is not a plain decimal (``-1e-12``, ``-1e-3``, ``-inf``) for an option and stops
+    with "expected one argument"; joined, the value reaches the command's own checks, which
+    accept it or say why not. An unambiguous prefix of an option counts as argparse's does."""
+    command = next((a for a in argv if a in SUBCOMMANDS), None)
+    if command is None:
+        return list(argv)
+    options = _value_options(parser, command)
+    out: list[str] = []
+    for token in argv:
+        prev = out[-1] if out else ""
+        if "--" not in out and _is_number(token) and token.startswith("-") and prev.startswith("-") \
+                and "=" not in prev and _option(prev, options):
+            out[-1] = f"{prev}={token}"
+        else:
+            out.append(token)
+    return out
+
+
+def _option(token: str, options: set[str]) -> bool:
+    """Whether ``token`` names one of ``options`` (exactly, or as the prefix of only one long one)."""
+    if token in options:
+        return True
+    return token.startswith("--") and len([o for o in options if o.startswith(token)]) == 1
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = join_negative_values(parser, sys.argv[1:] if argv is None else list(argv))
     args = parser.parse_args(argv)
     if getattr(args, "_missing", None):
         parser.error(args._missing)
+    global _MAIN_PID
     if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        _MAIN_PID = os.getpid()
         signal.signal(signal.SIGTERM, _terminate)
     try:
         return int(importlib.import_module(args._module).run(args) or 0)

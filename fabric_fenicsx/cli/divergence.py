@@ -4,7 +4,8 @@ Runs the scene twice (serially, one after the other), the second time with the i
 changed by ``--perturbation`` of itself (default 1e-12), and prints when the two histories
 first differ by 1e-10 ... 1e-2 of each quantity and the exponential rate at which the difference
 grew (:mod:`fabric_fenicsx.studies.divergence`); writes divergence.json and each twin's output
-(OUT/a, OUT/b).
+(OUT/a, OUT/b). It holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`) from before the first
+twin to its end: a second writer into OUT stops at once (exit 2) with a line naming the first.
 """
 from __future__ import annotations
 
@@ -47,6 +48,24 @@ def run(args: argparse.Namespace) -> int:
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
         return 2
+    from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
+
+    lock = FolderLock(out, "divergence", run_id=scene.name,
+                      warn=lambda m: print(f"{PROG}: warning: {m}", file=sys.stderr, flush=True))
+    try:
+        lock.acquire()
+    except FolderLocked as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    try:
+        return _twins(args, scene, twin, out)
+    finally:
+        lock.release()
+
+
+def _twins(args: argparse.Namespace, scene, twin, out: Path) -> int:
+    from fabric_fenicsx.studies import divergence
+
     rep, summaries = divergence.run_twins(scene, twin, out, verbose=not args.quiet)
     rep["residual_velocity"] = [s["residual_velocity"] for s in summaries]
     rep["absorbed_energy"] = [s["absorbed_energy"] for s in summaries]

@@ -6,6 +6,11 @@ Runs the scene N times, the impact velocity changed by k x ``--perturbation`` of
 absorbed energy, the viscous dissipation and its share, the deflection at damage onset, how far
 from the impact point the first yarn breaks, and the removed cells (:mod:`fabric_fenicsx.studies.ensemble`). Writes OUT/ensemble.csv (a row as each
 member ends), OUT/ensemble.json, OUT/ensemble.png and each member's output (OUT/member_<k>).
+
+One ensemble at a time in a folder: it holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`)
+from before its first member to its end; a second writer into OUT stops at once (exit 2)
+with a line naming the first. A member's outcome that cannot be recorded, or a disk that
+fills up, ends it with one line (exit 1); run again, it reuses the complete members.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ import sys
 from pathlib import Path
 
 from fabric_fenicsx.cli import _perturbed
+from fabric_fenicsx.studies.runpool import DISK_ERRNOS, PoolStopped
 
 PROG = "fabric-fenicsx ensemble"
 COLUMNS = ("k", "velocity", "residual_velocity", "absorbed_energy", "viscous_dissipation", "viscous_share",
@@ -56,6 +62,38 @@ def run(args: argparse.Namespace) -> int:
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
         return 2
+    from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
+
+    lock = FolderLock(out, "ensemble", run_id=scene.name,
+                      warn=lambda m: print(f"{PROG}: warning: {m}", file=sys.stderr, flush=True))
+    try:
+        lock.acquire()
+    except FolderLocked as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    except OSError as err:
+        print(f"{PROG}: cannot lock the output folder {out}: {err.strerror or err}", file=sys.stderr)
+        return 1
+    try:
+        return _ensemble(args, scene, out, p)
+    except OSError as err:
+        if err.errno not in DISK_ERRNOS:
+            raise
+        where = f" ({err.filename})" if err.filename else ""
+        print(f"{PROG}: stopped: a file could not be written{where}: {err.strerror or err}; free space "
+              "and run it again: its complete members are reused", file=sys.stderr)
+        return 1
+    except PoolStopped as err:
+        print(f"{PROG}: stopped: {err}", file=sys.stderr)
+        return 1
+    finally:
+        lock.release()
+
+
+def _ensemble(args: argparse.Namespace, scene, out: Path, p: float) -> int:
+    from fabric_fenicsx.studies import ensemble
+    from fabric_fenicsx.studies.runpool import write_atomic
+
     jobs = min(args.members, args.jobs or len(os.sched_getaffinity(0)))
     out.mkdir(parents=True, exist_ok=True)
     table = out / "ensemble.csv"
@@ -80,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     ok = [r for r in rows if "error" not in r]
     rep = ensemble.summarise(ok, p)
     rep.update(scene=str(args.scene), overrides=list(args.overrides), failed=[r for r in rows if "error" in r])
-    (out / "ensemble.json").write_text(json.dumps(rep, indent=1))
+    write_atomic(out / "ensemble.json", json.dumps(rep, indent=1))
     if ok:
         ensemble.plot(rep, out / "ensemble.png", title=f"{scene.name}: {len(ok)} members")
     print(ensemble.format_summary(rep))

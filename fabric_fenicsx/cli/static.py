@@ -21,11 +21,11 @@ PROG = "fabric-fenicsx static"
 
 
 def _positive_step(text: str) -> float:
-    """``--step`` as a float (argparse type), or an error naming the option."""
+    """``--step`` as a float (argparse type), or an error (argparse names the option before it)."""
     try:
         return check_step(text)
     except ValueError as err:
-        raise argparse.ArgumentTypeError(f"--step: {err}") from None
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _positive_int(text: str) -> int:
@@ -35,7 +35,7 @@ def _positive_int(text: str) -> int:
     except ValueError:
         n = 0
     if n < 1:
-        raise argparse.ArgumentTypeError(f"--max-steps: must be an integer >= 1, got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
     return n
 
 

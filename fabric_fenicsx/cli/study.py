@@ -7,6 +7,14 @@ report). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`
 OUT/runs/<run>; a run stored with the same settings and model version is reused, so
 an interrupted study resumes. ``--set`` applies to every run. Writes OUT/NAME.md and
 OUT/NAME.json; ``chapter4`` also writes the report ``--doc`` (default docs/validation.md).
+
+One study at a time in a folder: the study holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`)
+from before its first run to its end (also on an error or Ctrl-C); a second study, ensemble or
+run into OUT stops at once (exit 2) with a line naming the first. Each run's folder is locked
+by its own ``impact`` process. A run's outcome that cannot be recorded, or a disk that fills
+up, ends the study with one line (exit 1, no traceback): run it again when there is room, and
+it reruns every incomplete run (:mod:`fabric_fenicsx.studies.runpool`). A damage picture is
+drawn only when every run it shows is complete; else the report says which runs it lacks.
 """
 from __future__ import annotations
 
@@ -18,8 +26,11 @@ import sys
 import time
 from pathlib import Path
 
+from fabric_fenicsx.studies.runpool import DISK_ERRNOS, PoolStopped
+
 PROG = "fabric-fenicsx study"
 RUN_OUTPUT = ("output.xdmf_interval=0", "output.progress_interval=0")
+
 """Every study run writes its history, summary and pictures, but no XDMF (unless --set asks)."""
 
 
@@ -68,8 +79,6 @@ def _check(args) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.cli.impact import _size
-    from fabric_fenicsx.studies import chapter4
-    from fabric_fenicsx.studies.runpool import run_all
 
     if _size() > 1:
         print(f"{PROG}: the runs are processes of their own (--jobs); run it without mpirun", file=sys.stderr)
@@ -79,6 +88,37 @@ def run(args: argparse.Namespace) -> int:
     if problem:
         print(f"{PROG}: {problem}", file=sys.stderr)
         return 2
+    from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
+
+    lock = FolderLock(args.out, "study", run_id=args.name, warn=lambda m: _say(f"{PROG}: warning: {m}", sys.stderr))
+    try:
+        lock.acquire()
+    except FolderLocked as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    except OSError as err:
+        print(f"{PROG}: cannot lock the output folder {args.out}: {err.strerror or err}", file=sys.stderr)
+        return 1
+    try:
+        return _study(args)
+    except OSError as err:
+        if err.errno not in DISK_ERRNOS:
+            raise
+        where = f" ({err.filename})" if err.filename else ""
+        print(f"{PROG}: stopped: a file could not be written{where}: {err.strerror or err}; free space "
+              "and run it again: its complete runs are reused, the others run again", file=sys.stderr)
+        return 1
+    except PoolStopped as err:
+        print(f"{PROG}: stopped: {err}", file=sys.stderr)
+        return 1
+    finally:
+        lock.release()
+
+
+def _study(args) -> int:
+    from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.runpool import run_all, write_atomic
+
     t0 = time.perf_counter()
     out = Path(args.out)
     jobs = args.jobs or len(os.sched_getaffinity(0))
@@ -104,9 +144,9 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     report = {"study": args.name, "overrides": list(args.overrides), "wall_time_s": wall,
               "runs": results, "v50": limits, "waves": waves}
-    (out / f"{args.name}.json").write_text(json.dumps(report, indent=1, default=str))
+    write_atomic(out / f"{args.name}.json", json.dumps(report, indent=1, default=str))
     text = _report(args.name, results, limits, waves, overrides, wall, out)
-    (out / f"{args.name}.md").write_text(text)
+    write_atomic(out / f"{args.name}.md", text)
     if args.name == "chapter4":
         doc = Path(args.doc)
         doc.parent.mkdir(parents=True, exist_ok=True)
@@ -114,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         pictures.mkdir(exist_ok=True)
         for png in (out / "pictures").glob("*.png"):
             shutil.copy(png, pictures / png.name)
-        doc.write_text(text.replace("](pictures/", f"]({pictures.name}/"))
+        write_atomic(doc, text.replace("](pictures/", f"]({pictures.name}/"))
         print(f"{PROG}: wrote {doc}")
     failed = [k for k, s in results.items() if "error" in s]
     print(f"{PROG} {args.name}: {len(results) - len(failed)} of {len(results)} runs, wall time "
@@ -159,6 +199,7 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
     from fabric_fenicsx.studies.runpool import run_all
 
     slots = threading.BoundedSemaphore(jobs)
+    stop = threading.Event()        # one scene's pool stopped (a full disk): the others stop too
     limits, crashed = {}, {}
 
     def guarded(scene):
@@ -172,7 +213,7 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
 
         def evaluate(v):
             runs = [chapter4.v50_run(scene, v, k, overrides) for k in offsets(members)]
-            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress, slots=slots)
+            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress, slots=slots, stop=stop)
             bad = [k for k, s in done.items() if "error" in s]
             if bad:
                 raise RuntimeError(f"v50 of {scene}: run {bad[0]} failed ({done[bad[0]]['error']}); "
@@ -197,6 +238,9 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
         t.start()
     for t in threads:
         t.join()
+    stopped = [err for err in crashed.values() if isinstance(err, PoolStopped)]
+    if stopped:         # the first cause, not the pools that stopped with it
+        raise next((e for e in stopped if not str(e).startswith("stopped with")), stopped[0])
     for scene, err in crashed.items():
         raise RuntimeError(f"{PROG} v50: the bisection of {scene} stopped") from err
     return {scene: limits[scene] for scene in chapter4.SCENES}
@@ -309,12 +353,18 @@ def _outcomes(scene: str, results: dict, limit: dict) -> str:
 
 
 def _damage_pictures(results: dict, cases, out: Path, path: Path, what: str) -> list[str]:
-    """The cases' damage at the end side by side (:func:`~fabric_fenicsx.studies.chapter4.plot_damage`)."""
+    """The cases' damage at the end side by side (:func:`~fabric_fenicsx.studies.chapter4.plot_damage`),
+    drawn only when every case's run is complete (:func:`~fabric_fenicsx.studies.chapter4.incomplete_cases`);
+    else no picture (an older one is removed) and a line, in the report and on stderr, naming
+    the runs it lacks."""
     from fabric_fenicsx.studies import chapter4
 
-    found = [(label, out / "runs" / key / "damage.npz") for label, key in cases
-             if (out / "runs" / key / "damage.npz").is_file()]
-    if not found:
-        return []
-    chapter4.plot_damage(found, path)
+    lacking = chapter4.incomplete_cases(results, cases, out / "runs")
+    if lacking:
+        path.unlink(missing_ok=True)
+        line = (f"The {what} damage picture is not drawn: it would lack "
+                + "; ".join(f"{key} ({why})" for key, why in lacking) + ".")
+        _say(f"{PROG}: {line}", sys.stderr)
+        return [line, ""]
+    chapter4.plot_damage([(label, out / "runs" / key / "damage.npz") for label, key in cases], path)
     return [f"![damage, {what}](pictures/{path.name})", ""]

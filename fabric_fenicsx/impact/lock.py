@@ -86,8 +86,12 @@ class FolderLock:
             fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
         except FileExistsError:
             return False
-        with os.fdopen(fd, "w") as f:
-            json.dump(record, f)
+        try:
+            with os.fdopen(fd, "w") as f:
+                json.dump(record, f)
+        except OSError:
+            self.path.unlink(missing_ok=True)   # a full disk: leave no empty lock behind
+            raise
         self._mine = record
         return True
 

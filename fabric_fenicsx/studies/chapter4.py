@@ -21,7 +21,7 @@ from fabric_fenicsx.studies.runpool import Run
 
 __all__ = ["SCENES", "VELOCITIES", "THESIS", "STUDIES", "FRICTIONS", "FILLETS", "V50_BRACKET", "run_key", "plan",
            "v50_run", "v50_start", "row", "fmt", "table_md", "variant_md", "checklist", "plot_residual",
-           "plot_damage"]
+           "plot_damage", "incomplete_cases"]
 
 SCENE_DIR = Path(__file__).resolve().parents[2] / "demos" / "scenes"
 SCENES = {"Y90": "y90.toml", "XY0": "xy0.toml", "XY45": "xy45.toml", "Y0": "y0.toml"}
@@ -276,6 +276,29 @@ def plot_residual(results: dict, path: str | Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def incomplete_cases(results: dict, cases, runs_dir: str | Path) -> list[tuple[str, str]]:
+    """(run key, why) of each case (label, run key) whose run cannot be drawn: missing from
+    ``results``, failed, or its folder in ``runs_dir`` incomplete
+    (:func:`~fabric_fenicsx.studies.runpool.incomplete`: no damage.npz, ...)."""
+    from fabric_fenicsx.studies.runpool import incomplete
+
+    lacking = []
+    for _, key in cases:
+        summary = results.get(key)
+        if summary is None:
+            lacking.append((key, "not run"))
+        elif "error" in summary:
+            lacking.append((key, f"failed: {summary['error']}"))
+        else:
+            folder = Path(runs_dir) / key
+            missing = incomplete(folder, summary) if summary.get("settings") else []
+            drawn = incomplete(folder, {"settings": {"output": {"png": True}}})   # the picture's own file
+            missing += [m for m in drawn if m == "damage.npz" and m not in missing]
+            if missing:
+                lacking.append((key, f"incomplete: no {', '.join(missing)}"))
+    return lacking
 
 
 def plot_damage(cases: list[tuple[str, Path]], path: str | Path, half_width: float = 0.07) -> None:

@@ -1,24 +1,71 @@
 """Independent impact runs of a study, ``jobs`` at a time, each a ``fabric-fenicsx impact``
-process of its own; a run whose summary.json is stored with the same settings and model version
-(:mod:`fabric_fenicsx.provenance`) is reused, not run again, so an interrupted study
-resumes where it stopped; so is a run that failed (failed.json: its error, settings and model
-version), which would fail the same way again (a run killed or interrupted is run again).
+process of its own; a run whose complete record is stored with the same settings and model
+version (:mod:`fabric_fenicsx.provenance`) is reused, not run again, so an interrupted study
+resumes where it stopped; so is a run that failed in the model (failed.json: its error,
+settings and model version), which would fail the same way again.
 
 A run is a :class:`Run` (a folder name, a scene file, ``--set`` overrides); :func:`run_all`
 returns each run's summary, or a row with ``error`` (the exit code and the last line of its
 log) for a run that failed. Each process runs serially (one rank, one thread).
+
+What counts as stored (:func:`incomplete`): a run's folder is taken as done only if
+
+* its summary.json is a non-empty JSON object with the same settings and model version, and
+  the folder holds, each non-empty, every file a finished run writes that a study reads
+  afterwards (:func:`expected_files`): history.csv always; damage.npz (and it opens as an
+  archive) when the run draws its pictures (``output.png``, the damage pictures of several
+  runs read it); impact.xdmf and impact.bin when it writes XDMF frames (``output.xdmf_interval``
+  > 0 with ``output.fields``, the wave speeds read them). summary.json is written before the
+  pictures, so a run stopped in between (killed, a full disk) has a summary but is not done;
+* or its failed.json is a non-empty JSON object with ``error``, the same settings and model
+  version, and ``"cause": "model"``: a failure the model reported (a blow-up, a bad input), not
+  one of its surroundings. A run killed (a signal) or interrupted (exit 130, 143), ended by its
+  surroundings (:func:`surroundings`: a full disk, a read-only or vanished folder, memory, its
+  output folder held by another writer), or failing after it wrote its summary (while writing
+  its pictures) is not recorded and runs again.
+
+Anything else (a missing or empty file, a record cut short, a record older than this rule) is
+incomplete: the run runs again. Records are written atomically (:func:`write_atomic`: a
+temporary file in the same folder, then ``os.replace``), so none is ever left empty or cut.
+
+A run's outcome that cannot be recorded, and a run that failed because its disk is full, stop
+the pool: the running processes are ended (SIGTERM; they run again when the study is resumed)
+and :class:`PoolStopped` is raised with one line that says why and what to do.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Run", "run_all"]
+__all__ = ["Run", "run_all", "PoolStopped", "incomplete", "expected_files", "surroundings", "write_atomic",
+           "DISK_ERRNOS"]
+
+DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO)
+"""Errors of a disk rather than of the model: full, over quota, file too large, read-only, I/O."""
+
+SURROUNDINGS = ("No space left on device", "Disk quota exceeded", "File too large", "Read-only file system",
+                "Input/output error", "Cannot allocate memory", "MemoryError", "Killed", "is in use by",
+                "too large to run here", "output: a file could not be written")
+"""Words in the last line of a failed run's log that name its surroundings, not the model:
+such a failure is not recorded (the run runs again when the study is resumed)."""
+
+FULL = ("No space left on device", "Disk quota exceeded")
+"""Words of a failed run's log that mean its disk is full: the pool stops."""
+
+LOW_SPACE = 64 << 10
+"""A failed run whose file system has less free space than this (bytes) failed on a full disk."""
+
+
+class PoolStopped(RuntimeError):
+    """The pool stopped before its runs were done; the message is one line saying why."""
 
 
 @dataclass(frozen=True)
@@ -41,22 +88,116 @@ def _settings(run: Run) -> dict:
     return load_scene(run.scene, list(run.overrides)).to_dict()
 
 
-def _stored(run: Run, folder: Path) -> dict | None:
-    """The run's stored summary, or its stored failure (failed.json: the same settings and model
-    version fail the same way), or None."""
+def write_atomic(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` whole or not at all: into a temporary file beside it, flushed
+    to disk, then renamed over it (``os.replace``). On an error (a full disk) the temporary
+    file is removed, ``path`` keeps what it held, and the OSError is raised."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        with open(tmp, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def expected_files(settings: dict | None) -> list[str]:
+    """The files a finished run with these settings (a summary's ``settings``) writes that a
+    study reads afterwards; with no settings (a record not made by the impact command) only
+    summary.json."""
+    if not settings:
+        return ["summary.json"]
+    output = settings.get("output", {})
+    names = ["summary.json", "history.csv"]
+    if output.get("png", True):
+        names.append("damage.npz")
+    if (output.get("xdmf_interval") or 0) > 0 and output.get("fields", [None]):
+        names += ["impact.xdmf", "impact.bin"]
+    return names
+
+
+def incomplete(folder: str | Path, summary: dict) -> list[str]:
+    """The files of :func:`expected_files` (for the summary's settings) that ``folder`` lacks,
+    holds empty, or (damage.npz) holds cut short; [] for a complete run."""
+    folder = Path(folder)
+    missing = []
+    for name in expected_files(summary.get("settings")):
+        path = folder / name
+        try:
+            ok = path.stat().st_size > 0
+            if ok and name.endswith(".npz"):
+                with zipfile.ZipFile(path) as z:
+                    ok = bool(z.namelist())
+        except (OSError, zipfile.BadZipFile):
+            ok = False
+        if not ok:
+            missing.append(name)
+    return missing
+
+
+def _record(path: Path, settings: dict) -> dict | None:
     from fabric_fenicsx.provenance import load_if_same
 
+    record = load_if_same(path, settings)
+    return record if isinstance(record, dict) and record else None
+
+
+def _stored(run: Run, folder: Path) -> dict | None:
+    """The run's complete stored summary, or its stored failure in the model, or None (see the
+    module's docstring)."""
     settings = _settings(run)
-    return load_if_same(folder / "summary.json", settings) or load_if_same(folder / "failed.json", settings)
+    summary = _record(folder / "summary.json", settings)
+    if summary is not None and "error" not in summary and not incomplete(folder, summary):
+        return summary
+    failed = _record(folder / "failed.json", settings)
+    if failed is not None and failed.get("error") and failed.get("cause") == "model":
+        return failed
+    return None
+
+
+def surroundings(error: str) -> bool:
+    """Whether a failed run's error (the last line of its log) names its surroundings (a disk,
+    memory, a signal, another writer) rather than the model."""
+    return any(words in error for words in SURROUNDINGS)
+
+
+def _disk_full(folder: Path, error: str) -> bool:
+    if any(words in error for words in FULL):
+        return True
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return False
+    return st.f_bavail * st.f_frsize < LOW_SPACE
+
+
+def _last_line(folder: Path) -> str:
+    try:
+        lines = (folder / "run.log").read_text(errors="replace").strip().splitlines()
+    except OSError:
+        return "no output (its log cannot be read)"
+    return lines[-1] if lines else "no output"
+
+
+def _resume_hint(out_dir: Path) -> str:
+    return (f"free space in {out_dir} (or give another --out) and run it again: its complete runs are "
+            "reused, the others run again")
 
 
 def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, reuse: bool = True,
-            slots=None) -> dict:
+            slots=None, stop=None) -> dict:
     """Run (or, with ``reuse``, take the stored result of) every run, ``jobs`` processes at a
     time; ``on_done(run, summary, reused)`` is called as each one ends. ``slots``: a
     ``threading.Semaphore`` shared by calls in other threads, of which every process holds one
-    while it runs (so that concurrent calls together keep to the cores). Returns
-    ``{key: summary}`` (a failed run: ``{"error": ...}``)."""
+    while it runs (so that concurrent calls together keep to the cores). ``stop``: a
+    ``threading.Event`` shared with those calls: set when one of them stops, it stops the others.
+    Returns ``{key: summary}`` (a failed run: ``{"error": ...}``). Raises :class:`PoolStopped`
+    when an outcome cannot be recorded or a run failed on a full disk (see the module's
+    docstring)."""
     out_dir = Path(out_dir)
     keys = [r.key for r in runs]
     if len(set(keys)) != len(keys):
@@ -73,51 +214,107 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
             pending.append(run)
     running: dict = {}
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    while pending or running:
-        while pending and len(running) < max(1, jobs) and (slots is None or slots.acquire(blocking=False)):
-            run = pending.pop(0)
-            folder = out_dir / run.key
-            folder.mkdir(parents=True, exist_ok=True)
-            (folder / "summary.json").unlink(missing_ok=True)   # never read an older run's
-            (folder / "failed.json").unlink(missing_ok=True)
-            log = open(folder / "run.log", "w")
-            try:
-                proc = subprocess.Popen(_command(run, folder), stdout=log, stderr=subprocess.STDOUT, env=env)
-            except BaseException:
+    try:
+        while pending or running:
+            if stop is not None and stop.is_set():
+                raise PoolStopped("stopped with the runs beside it")
+            while pending and len(running) < max(1, jobs) and (slots is None or slots.acquire(blocking=False)):
+                run = pending.pop(0)
+                try:
+                    running[run.key] = _start(run, out_dir / run.key, env)
+                except BaseException as err:
+                    if slots is not None:
+                        slots.release()
+                    if isinstance(err, OSError):
+                        raise PoolStopped(f"run {run.key} cannot be started in {out_dir / run.key}: "
+                                          f"{err.strerror or err}; {_resume_hint(out_dir)}") from None
+                    raise
+            time.sleep(0.2)
+            for key in [k for k, (p, *_) in running.items() if p.poll() is not None]:
+                proc, run, folder, log = running.pop(key)
                 log.close()
                 if slots is not None:
                     slots.release()
-                raise
-            running[run.key] = (proc, run, folder, log)
-        time.sleep(0.2)
-        for key in [k for k, (p, *_) in running.items() if p.poll() is not None]:
-            proc, run, folder, log = running.pop(key)
-            log.close()
-            if slots is not None:
-                slots.release()
-            try:
-                summary = json.loads((folder / "summary.json").read_text())
-                if proc.returncode != 0:
-                    raise ValueError("the run failed after writing a summary")
-            except (OSError, ValueError):
-                lines = (folder / "run.log").read_text(errors="replace").strip().splitlines()
-                summary = {"error": f"exit code {proc.returncode}: {lines[-1] if lines else 'no output'}"}
-                if proc.returncode > 0 and proc.returncode != 130:   # not killed, not interrupted
-                    _record_failure(run, folder, summary)
-            results[key] = summary
-            if on_done is not None:
-                on_done(run, summary, False)
+                results[key] = _finished(run, folder, proc.returncode, out_dir)
+                if on_done is not None:
+                    on_done(run, results[key], False)
+    except BaseException as err:
+        _end(running, slots)
+        if isinstance(err, PoolStopped) and stop is not None:
+            stop.set()
+        raise
     return {k: results[k] for k in keys}
+
+
+def _start(run: Run, folder: Path, env: dict):
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in ("summary.json", "failed.json"):
+        (folder / name).unlink(missing_ok=True)     # never read an older run's
+    log = open(folder / "run.log", "w")
+    try:
+        proc = subprocess.Popen(_command(run, folder), stdout=log, stderr=subprocess.STDOUT, env=env)
+    except BaseException:
+        log.close()
+        raise
+    return proc, run, folder, log
+
+
+def _finished(run: Run, folder: Path, code: int, out_dir: Path) -> dict:
+    """The outcome of a run that ended with exit code ``code``: its summary, or a row with
+    ``error`` (recorded in failed.json if the model failed)."""
+    summary = None
+    try:
+        summary = json.loads((folder / "summary.json").read_text())
+        if not isinstance(summary, dict) or not summary:
+            raise ValueError("an empty summary")
+    except (OSError, ValueError):
+        summary = None
+    if summary is not None and code == 0:
+        missing = incomplete(folder, summary)
+        if not missing:
+            return summary
+        error = f"exit code 0 but its output lacks {', '.join(missing)}"
+    else:
+        error = f"exit code {code}: {_last_line(folder)}"
+    if code != 0 and _disk_full(folder, error) or code == 0 and _disk_full(folder, ""):
+        raise PoolStopped(f"run {run.key} failed on a full disk ({error}); {_resume_hint(out_dir)}")
+    failure = {"error": error}
+    if code > 0 and code not in (130, 143) and not surroundings(error) and summary is None:
+        try:
+            _record_failure(run, folder, failure)
+        except OSError as err:
+            raise PoolStopped(f"the failure of run {run.key} cannot be recorded in {folder / 'failed.json'}: "
+                              f"{err.strerror or err}; {_resume_hint(out_dir)}") from None
+    return failure
+
+
+def _end(running: dict, slots) -> None:
+    """End the running processes (SIGTERM, then SIGKILL after 10 s): they run again later."""
+    for proc, *_ in running.values():
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+    t0 = time.monotonic()
+    for proc, run, folder, log in running.values():
+        try:
+            proc.wait(timeout=max(0.1, 10.0 - (time.monotonic() - t0)))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.close()
+        if slots is not None:
+            slots.release()
+    running.clear()
 
 
 def _record_failure(run: Run, folder: Path, summary: dict) -> None:
     """failed.json beside the run's log: its error, settings and model version, so that the
-    study reports it again instead of repeating a run that fails the same way."""
+    study reports it again instead of repeating a run that fails the same way; written
+    atomically (an OSError, e.g. a full disk, leaves no failed.json)."""
     from fabric_fenicsx.provenance import model_version
 
     try:
         settings = _settings(run)
     except Exception:        # the scene itself is bad: nothing to reuse
         return
-    (folder / "failed.json").write_text(json.dumps({**summary, "settings": settings,
-                                                    "model_version": model_version()}, indent=1))
+    write_atomic(folder / "failed.json", json.dumps({**summary, "cause": "model", "settings": settings,
+                                                     "model_version": model_version()}, indent=1))

@@ -153,3 +153,15 @@ def test_the_command_refuses_a_runaway_mesh_fast_and_small(tmp_path):
     ok = cli("impact", Y90, "--check")
     _, err = ok.communicate(timeout=60)
     assert ok.returncode == 0 and "estimate: about 3," in err
+
+
+def test_a_lock_that_cannot_be_written_leaves_no_file(tmp_path, monkeypatch):
+    import errno
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(json, "dump", full)
+    with pytest.raises(OSError, match="No space"):
+        FolderLock(tmp_path, "study").acquire()
+    assert not (tmp_path / LOCK_NAME).exists()

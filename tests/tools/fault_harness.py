@@ -29,6 +29,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 PROBE_TAG = "fabric-fenicsx-probe:"
+ESTIMATE = ": estimate: about "
+"""What the line of a run's size estimate holds (left out of the messages)."""
 
 PROBE = r"""
 import json, os, sys
@@ -134,8 +136,9 @@ class Run:
 
     @property
     def messages(self) -> list[str]:
-        """stderr lines without the probe's."""
-        return [ln for ln in self.stderr.splitlines() if not ln.startswith(PROBE_TAG)]
+        """stderr lines without the probe's and without the size estimate every run prints
+        before it starts (``fabric-fenicsx impact: estimate: ...``: information, not a message)."""
+        return [ln for ln in self.stderr.splitlines() if not ln.startswith(PROBE_TAG) and ESTIMATE not in ln]
 
     @property
     def first_line(self) -> str:
@@ -215,6 +218,26 @@ def _probe(stderr: str) -> dict:
             for key, value in json.loads(line[len(PROBE_TAG):]).items():
                 seen[key] = seen.get(key, False) or value
     return seen
+
+
+# ----------------------------------------------------------------------------- no machine paths
+def scrub(value, tmp: str | os.PathLike | None = None):
+    """``value`` (a string, or a row / list of them) with the paths of this machine replaced:
+    the temporary folder ``tmp`` of the run by ``$TMP`` and the checkout's root by ``$REPO``
+    (both as given and resolved), so that what the harness writes names no machine's paths."""
+    if isinstance(value, dict):
+        return {k: scrub(v, tmp) for k, v in value.items()}
+    if isinstance(value, list):
+        return [scrub(v, tmp) for v in value]
+    if not isinstance(value, str):
+        return value
+    pairs = []
+    for path, name in ((tmp, "$TMP"), (ROOT, "$REPO")):
+        if path is not None:
+            pairs += [(str(path), name), (str(Path(path).resolve()), name)]
+    for path, name in sorted(set(pairs), key=lambda p: -len(p[0])):     # the longest first
+        value = value.replace(path, name)
+    return value
 
 
 # ----------------------------------------------------------------------------- folders

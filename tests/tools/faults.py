@@ -9,13 +9,20 @@ of the reliability study's report (docs/reliability.md, written by :mod:`tests.t
 * :func:`fault_rows`: faults while a run goes (SIGINT, SIGKILL, a read-only or full surrogate
   cache, a full output disk, one failing MPI rank), one row each: what happened and what of the
   output is kept.
+* :func:`sharing_rows`: runs that share folders, machines and disks: a second impact run into
+  a running run's ``--out``, an ensemble into a folder a study holds, a runaway mesh
+  (``--set mesh.h_centre=1e-6``, refused within 5 s), and a study on a disk that fills up and
+  its resumption on the same disk made larger; one row each: exit code, seconds, the message
+  and what is left.
 
 Each row's keys are its table's columns. Every case runs the tiny scene :data:`TINY_SCENE` (a
 16 x 16 uniform mesh, 0.3 ms of simulated time, about a second of solving), in its own
 temporary folder with its own surrogate cache, so the study neither reads nor changes the
 user's cache. The harness (running the command line under a probe, read-only folders, full
 disks, the workspace) is :mod:`tests.tools.fault_harness`; its names are importable from here
-too. ``python -m tests.tools.faults`` (from the checkout's root) prints both tables as JSON lines.
+too. Messages are recorded with ``$TMP`` for the case's temporary folder and ``$REPO`` for the
+checkout (:func:`~tests.tools.fault_harness.scrub`). ``python -m tests.tools.faults`` (from the
+checkout's root) prints the tables as JSON lines, ``--markdown`` as markdown tables.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -35,7 +43,7 @@ from pathlib import Path
 from tests.tools.fault_harness import (  # noqa: F401 - re-exported for the tests
     BAD_FABRICS, GOOD_FABRIC, INJECT_RANK1, MPI_ENV, PROBE, PROBE_TAG, ROOT, TINY_SCENE, Run,
     Workspace, _end_group, _mount, _probe, cli_command, cli_env, is_root, read_only_dir, run_cli,
-    small_disk)
+    scrub, small_disk)
 
 
 @dataclasses.dataclass
@@ -57,7 +65,7 @@ def _row(what: str, case: Case, run: Run | None) -> dict:
                 "seconds": "-", "work started": "-", "outcome": "-"}
     code = "timed out" if run.returncode is None else run.returncode
     how = f" ({case.note})" if case.note else ""
-    return {"input": what + how, "exit code": code, "message (first line)": _short(run.first_line),
+    return {"input": what + how, "exit code": code, "message (first line)": run.first_line,
             "seconds": round(run.seconds, 2), "work started": run.work_started,
             "outcome": _outcome(run, case.out)}
 
@@ -77,6 +85,16 @@ def _outcome(run: Run, out: Path | None) -> str:
     return f"failed after work started (exit {run.returncode})"
 
 
+def _finished(rows: list[dict], tmp) -> list[dict]:
+    """The rows as recorded: this machine's paths replaced (``$TMP``, ``$REPO``), then each
+    message cut to its first 220 characters (in that order, so no path is cut in half)."""
+    rows = scrub(rows, tmp)
+    for row in rows:
+        if isinstance(row.get("message (first line)"), str):
+            row["message (first line)"] = _short(row["message (first line)"])
+    return rows
+
+
 def _short(text: str, limit: int = 220) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
@@ -93,7 +111,7 @@ def bad_input_rows(timeout: float = 180.0) -> list[dict]:
                 run = None if case.args is None else run_cli(case.args, env=case.env, timeout=timeout,
                                                              ranks=case.ranks)
                 rows.append(_row(what, case, run))
-        return rows
+        return _finished(rows, tmp)
 
 
 def _fixed(args, env, ranks: int = 1, out: Path | None = None):
@@ -192,7 +210,7 @@ def fault_rows(timeout: float = 240.0) -> list[dict]:
             _mpi_exception_row(ws, timeout),
             _mpi_kill_row(ws, timeout),
         ]
-        return rows
+        return _finished(rows, tmp)
 
 
 def kept(out: Path) -> dict:
@@ -233,7 +251,7 @@ def _fault(fault: str, run: Run | None, out: Path | None, note: str = "") -> dic
                 "message (first line)": "not available: " + note, **nothing}
     code = "timed out" if run.returncode is None else run.returncode
     row = {"fault": fault, "exit code": code, "seconds": round(run.seconds, 2),
-           "message (first line)": _short(_fault_message(run, note))}
+           "message (first line)": _fault_message(run, note)}
     row.update(kept(out) if out is not None else nothing)
     return row
 
@@ -363,12 +381,151 @@ def _mpi_kill_row(ws: Workspace, timeout: float) -> dict:
     return _fault("2 MPI ranks, rank 1 killed (SIGKILL) after 100 history rows", run, out)
 
 
-def main() -> None:
-    """Print both tables as JSON lines (the rendering is in :mod:`tests.tools.reliability`)."""
-    for row in bad_input_rows():
-        print(json.dumps(row))
-    for row in fault_rows():
-        print(json.dumps(row))
+# ----------------------------------------------------------------------------- shared folders, sizes, disks
+STUDY_TINY = ("material.damage=false", "mesh.kind=uniform", "mesh.side=0.08", "mesh.n=16", "projectile.diameter=0.02",
+              "projectile.mass=0.005", "run.t_end=3e-4")
+"""The study's scene made as small as the tiny scene (its table tiles, a second a run)."""
+
+STUDY_DISK = "450k"
+"""The full-disk study's tmpfs: two of the fillet study's three runs (about 190 kB each with
+their pictures) fit, the third fills it."""
+
+
+def sharing_rows(timeout: float = 240.0) -> list[dict]:
+    """Runs that share folders, machines and disks: one row each (see the module's docstring)."""
+    with tempfile.TemporaryDirectory(prefix="fabric-faults-") as tmp:
+        ws = Workspace(Path(tmp))
+        rows = [_two_impact_runs_row(ws, timeout), _held_by_study_row(ws, timeout), _runaway_mesh_row(ws),
+                *_full_disk_study_rows(ws, timeout)]
+        return _finished(rows, tmp)
+
+
+def _share(check: str, run: Run | None, left: str, note: str = "") -> dict:
+    if run is None:
+        return {"check": check, "exit code": "-", "seconds": "-", "message (first line)": "not available: " + note,
+                "what is left": "-"}
+    code = "timed out" if run.returncode is None else run.returncode
+    return {"check": check, "exit code": code, "seconds": round(run.seconds, 2),
+            "message (first line)": _fault_message(run, note), "what is left": left}
+
+
+def _two_impact_runs_row(ws: Workspace, timeout: float) -> dict:
+    """A second ``impact`` into the folder of one that runs: refused at once, the first's
+    output whole when it ends."""
+    out = ws.path("out-shared")
+    scene = _with_t_end(ws, 3e-3)
+    ws.filled_cache()
+    first = subprocess.Popen(cli_command(["impact", scene, "--out", out, "--quiet"]), env=cli_env(ws.cache),
+                             cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        if not _wait_for_rows(out / "history.csv", 20, first):
+            return _share("a second impact run into a running run's --out", None, "-", "the first run did not start")
+        second = run_cli(["impact", ws.scene, "--out", out, "--quiet"], env=cli_env(ws.cache), timeout=timeout)
+        first.wait(timeout=timeout)
+    finally:
+        if first.poll() is None:
+            _end_group(first)
+    k = kept(out)
+    left = (f"the first run ended with exit {first.returncode}: {k['history rows readable']} history rows, "
+            f"summary.json {k['summary.json']}")
+    return _share("a second impact run into a running run's --out", second, left)
+
+
+def _held_by_study_row(ws: Workspace, timeout: float) -> dict:
+    """An ensemble into a folder a study (another process) holds."""
+    out = ws.path("study-held")
+    code = ("import sys, time; from fabric_fenicsx.impact.lock import FolderLock; "
+            "FolderLock(sys.argv[1], 'study', run_id='fillet').acquire(); print('held', flush=True); time.sleep(600)")
+    holder = subprocess.Popen([sys.executable, "-c", code, str(out)], env=cli_env(ws.cache), cwd=ROOT,
+                              stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        holder.stdout.readline()
+        run = run_cli(["ensemble", ws.scene, "-n", "2", "--out", out, "--quiet"], env=cli_env(ws.cache),
+                      timeout=timeout)
+    finally:
+        _end_group(holder)
+    left = ", ".join(sorted(p.name for p in out.iterdir())) or "nothing"
+    return _share("an ensemble into a folder a study holds (the study: another process)", run,
+                  f"the folder holds {left}")
+
+
+def _runaway_mesh_row(ws: Workspace) -> dict:
+    """The Y90 scene with a 1 um centre cell: refused from the scene alone, within 5 s."""
+    out = ws.path("out-runaway")
+    run = run_cli(["impact", ROOT / "demos" / "scenes" / "y90.toml", "--set", "mesh.h_centre=1e-6", "--out", out],
+                  env=cli_env(ws.cache), timeout=60)
+    verdict = "within 5 s" if run.seconds < 5 else "SLOWER than 5 s"
+    left = (f"refused {verdict}, work started: {run.work_started}; output folder "
+            f"{'absent' if not out.exists() else 'holds ' + (', '.join(p.name for p in out.iterdir()) or 'nothing')}")
+    return _share("a runaway mesh: impact y90.toml --set mesh.h_centre=1e-6", run, left)
+
+
+def _full_disk_study_rows(ws: Workspace, timeout: float) -> list[dict]:
+    """``study fillet`` (three tiny runs, one at a time) on a tmpfs that fills up, then again on
+    the same disk made 20 MB."""
+    disk = ws.path("study-disk")
+    out = disk / "study"
+    ws.filled_cache()
+    args = ["study", "fillet", "--out", out, "--jobs", "1", *[a for o in STUDY_TINY for a in ("--set", o)]]
+    first_check = f"study fillet on a full disk ({STUDY_DISK} tmpfs)"
+    second_check = "the same study resumed on the disk made 20 MB"
+    with small_disk(disk, STUDY_DISK) as ok:
+        if not ok:
+            return [_share(first_check, None, "-", "mount refused"), _share(second_check, None, "-", "mount refused")]
+        full = run_cli(args, env=cli_env(ws.cache), timeout=timeout)
+        left = _study_left(out)
+        lines = [ln for ln in full.messages if ln.strip()]
+        left += f"; {len(lines)} line(s) on stderr, {'a' if 'Traceback' in full.stderr else 'no'} traceback"
+        rows = [_share(first_check, full, left)]
+        _mount(["-o", "remount,size=20m", str(disk)])
+        again = run_cli(args, env=cli_env(ws.cache), timeout=timeout)
+        md = out / "fillet.md"
+        text = md.read_text() if md.exists() else ""
+        reran = again.stdout.count(": done,")
+        picture = ("the fillet picture drawn" if "](pictures/damage_fillet.png)" in text
+                   else "NO fillet picture" + (": " + next((ln for ln in text.splitlines() if "not drawn" in ln), "")))
+        rows.append(_share(second_check, again, f"{reran} run(s) run again, {again.stdout.count(': stored,')} "
+                                                f"stored; {picture}; {_study_left(out)}"))
+        return rows
+
+
+def _study_left(out: Path) -> str:
+    """Which runs of a study folder are complete (:func:`fabric_fenicsx.studies.runpool.incomplete`),
+    and whether any record is empty."""
+    from fabric_fenicsx.studies.runpool import incomplete
+
+    runs = sorted(p for p in (out / "runs").glob("*") if p.is_dir())
+    done = []
+    for r in runs:
+        with contextlib.suppress(OSError, ValueError):
+            if not incomplete(r, json.loads((r / "summary.json").read_text())):
+                done.append(r.name)
+    empty = [str(p.relative_to(out)) for p in out.rglob("*.json") if p.stat().st_size == 0]
+    return (f"{len(done)} of {len(runs)} run folders complete, "
+            f"{'empty records: ' + ', '.join(empty) if empty else 'no empty record'}, "
+            f"lock {'LEFT' if (out / '.fabric-fenicsx.lock').exists() else 'released'}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the tables as JSON lines, or with ``--markdown`` as markdown tables (the report's
+    rendering is in :mod:`tests.tools.reliability`); ``--only NAME`` (bad_input, fault,
+    sharing) for one of them."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m tests.tools.faults")
+    parser.add_argument("--markdown", action="store_true")
+    parser.add_argument("--only", choices=("bad_input", "fault", "sharing"), action="append")
+    args = parser.parse_args(argv)
+    for name in args.only or ("bad_input", "fault", "sharing"):
+        t0 = time.perf_counter()
+        rows = globals()[f"{name}_rows"]()
+        if args.markdown:
+            from tests.tools.reliability import markdown_table
+
+            print(f"<!-- {name}_rows: {time.perf_counter() - t0:.0f} s -->\n{markdown_table(rows)}\n")
+        else:
+            for row in rows:
+                print(json.dumps(row))
 
 
 if __name__ == "__main__":

@@ -23,8 +23,16 @@ One command writes the whole report (:data:`CANONICAL_COMMAND`):
   57.3 and 123.69 m/s, each by the command line into ``OUT/min-<v>`` (a run whose
   ``summary.json`` holds the same settings and code version is read, not run again; ``--rerun``
   runs it again).
-* **bad inputs and faults**: the tables of :mod:`tests.tools.faults`
-  (``bad_input_rows()``, ``fault_rows()``), if that module can be imported.
+* **bad inputs, faults, shared folders and disks**: the tables of :mod:`tests.tools.faults`
+  (``bad_input_rows()``, ``fault_rows()``, ``sharing_rows()``: two writers into one folder, a
+  runaway mesh refused within 5 s, a study on a disk that fills up and its resumption), if that
+  module can be imported. Their messages name ``$TMP`` (the case's temporary folder) and
+  ``$REPO`` (the checkout) instead of this machine's paths.
+
+Run time on 2 cores (measured): the tables of the lower bound about 15 min when its tiles are
+not cached, the fuzz at its default 5e7 states about 8 min per bound, the two impact runs about
+2 min each, the fault tables about 5 min. ``python -m tests.tools.faults --markdown`` runs only
+the fault tables.
 
 Each section's numbers are kept in ``OUT/reliability.json`` and reused when asked again with
 the same settings by the same code (:func:`fabric_fenicsx.provenance.load_if_same`);
@@ -47,6 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from fabric_fenicsx.provenance import code_fingerprint, model_version
+from tests.tools.fault_harness import scrub
 
 __all__ = ["CANONICAL_COMMAND", "BOUNDS", "IMPACT_VELOCITIES", "sample_states", "build_tables",
            "fuzz", "near_zero_damage", "impact_run", "faults_sections", "write_report", "main"]
@@ -296,15 +305,18 @@ def _impact_record(s: dict, meta: dict, reused: bool) -> dict:
 
 
 # ============================================================================ faults
-def faults_sections() -> tuple[str, str]:
-    """Markdown of the bad-input table and the fault list (:mod:`tests.tools.faults`),
-    or "(not yet run)" for each if that module does not exist or fails."""
+FAULT_TABLES = ("bad_input_rows", "fault_rows", "sharing_rows")
+
+
+def faults_sections() -> tuple[str, ...]:
+    """Markdown of the bad-input, fault and sharing tables (:mod:`tests.tools.faults`), or
+    "(not yet run)" for each if that module does not exist or fails."""
     try:
         from tests.tools import faults
     except ImportError:
-        return "(not yet run)", "(not yet run)"
+        return ("(not yet run)",) * len(FAULT_TABLES)
     out = []
-    for name in ("bad_input_rows", "fault_rows"):
+    for name in FAULT_TABLES:
         fn = getattr(faults, name, None)
         if fn is None:
             out.append("(not yet run)")
@@ -312,8 +324,8 @@ def faults_sections() -> tuple[str, str]:
         try:
             out.append(markdown_table(fn()))
         except Exception as err:
-            out.append(f"(not run: `faults.{name}()` raised {type(err).__name__}: {err})")
-    return out[0], out[1]
+            out.append(scrub(f"(not run: `faults.{name}()` raised {type(err).__name__}: {err})"))
+    return tuple(out)
 
 
 def markdown_table(rows: list[dict]) -> str:
@@ -426,12 +438,12 @@ def _fmt(x, digits=4):
 
 def write_report(res: dict, doc: Path) -> None:
     """docs/reliability.md from the study's results."""
-    bad_md, faults_md = faults_sections()
+    bad_md, faults_md, sharing_md = faults_sections()
     L = ["# Reliability", "",
-         f"Written by `{CANONICAL_COMMAND}` on {res['date']} ({res['machine']}); code "
-         f"{res['code']['git_head']}, model version {res['code']['model_version']} (sections "
+         f"Written, from the repository root, by `{CANONICAL_COMMAND}` on {res['date']} ({res['machine']}); "
+         f"code {res['code']['git_head']}, model version {res['code']['model_version']} (sections "
          f"computed with model version(s) {', '.join(res.get('versions', [])) or '-'}). Numbers "
-         f"of each section are kept in `{res['out']}/reliability.json`.", ""]
+         f"of each section are kept in `{scrub(res['out'])}/reliability.json`.", "", WHAT_AND_HOW, ""]
     L += [PROSE_CAUSES, "", PROSE_TESTS, ""]
     L += ["## Tables: the unit cell at every node of both bending bounds", "",
           "Every tile of both layers of the default table (h = 0.002, 11 r-nodes); each node is "
@@ -512,12 +524,15 @@ def write_report(res: dict, doc: Path) -> None:
                      f"{r['absorbed_energy']:.2f} | {r['energy_error']:.2e} | {r['wall_time_s']:.0f} | "
                      f"{_fmt(r.get('build_time_s'), 3)} | {_fmt(r.get('solves_this_run'))} |")
         else:
+            tail = (r.get('log_tail') or '').strip().splitlines()[-1:]
             L.append(f"| {r['velocity']:g} | no (exit {r.get('returncode')}) | "
-                     f"{(r.get('log_tail') or '').strip().splitlines()[-1:] or ''} | | | | | | | |")
+                     f"{scrub(tail[0]) if tail else ''} | | | | | | | |")
     if not res.get("impact"):
         L.append("| (not run) | | | | | | | | | |")
     L += ["", res.get("default_check", ""), ""]
-    L += ["## Bad inputs", "", bad_md, "", "## Faults", "", faults_md, ""]
+    L += ["## Bad inputs", "", PATHS_NOTE, "", bad_md, "", "## Faults", "", "`$TMP` and `$REPO` as in the "
+          "previous section.", "", faults_md, "", "## Shared folders, runaway sizes and full disks", "",
+          SHARING_NOTE, "", sharing_md, ""]
     doc.parent.mkdir(parents=True, exist_ok=True)
     doc.write_text("\n".join(L).rstrip() + "\n")
 
@@ -614,6 +629,40 @@ def run(args) -> int:
         return 1
     return 0
 
+
+WHAT_AND_HOW = """\
+## What this checks and how to re-run it
+
+The harness (`tests/tools/reliability.py`, with `tests/tools/faults.py` and
+`tests/tools/fault_harness.py`; not part of the package) checks, each section below in turn:
+that the unit cell solves every node of the surrogate's table at both bending bounds; that the
+constitutive update (`Surrogate.update`) stays finite and never heals on 5e7 random material
+states per bound; how far the look-up is from the unit cell near zero damage; that the Y90 scene
+runs to its end at the lower bending bound; and, each through the command line in a fresh
+process with its own temporary folder and surrogate cache, that bad inputs stop before any work
+with one line, that faults while a run goes (signals, read-only or full disks, a failing MPI
+rank) end it with a message and leave readable output, and that runs sharing folders, machines
+and disks (two writers into one folder, a runaway mesh, a study on a disk that fills up) are
+refused or stop cleanly and resume.
+
+Re-run it from the repository root with the command above (`--rerun` recomputes what is
+stored; `--skip-impact` leaves out the impact runs; `--report-only` rewrites this file from the
+stored numbers). Only the fault tables: `.venv/bin/python -m tests.tools.faults --markdown`.
+The full-disk and read-only cases need to mount a tmpfs (root); elsewhere their rows say "not
+available". Each section is reused when its settings and the model version are unchanged, so
+the header's model versions say which code made which numbers."""
+
+PATHS_NOTE = """\
+In the messages below `$TMP` stands for the temporary folder the harness made for the run (a new
+one each time) and `$REPO` for the repository root, where the command was started."""
+
+SHARING_NOTE = """\
+One writer per output folder: `impact`, `study`, `ensemble` and `divergence` hold a lock on
+their `--out` while they write there; a second writer stops at once (exit 2) naming the first.
+A run's size is estimated from the scene alone, and a mesh the machine cannot hold is refused
+before it is built. A study on a disk that fills up stops with one line (exit 1); resumed with
+room, it reruns every incomplete run (a run whose folder lacks a file its summary implies, or
+whose record is empty) and its pictures have every panel."""
 
 FUZZ_BEFORE = """\
 Before the fix every state counted under "guaranteed path" raised SurrogateError (the fast
