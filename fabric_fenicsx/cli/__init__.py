@@ -51,18 +51,18 @@ class Terminated(KeyboardInterrupt):
     ending a job: handled as an interruption (files closed, locks released)."""
 
 
-_MAIN_PID = os.getpid()
-
-
 def _terminate(signum, frame):
-    """SIGTERM in the command's own process: an interruption. In a forked child (the surrogate's
-    tile workers, whose pool ends them with SIGTERM) the default action, at once: an exception
-    raised there could leave a pool's queue lock held and hang the run."""
-    if os.getpid() != _MAIN_PID:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-        os.kill(os.getpid(), signal.SIGTERM)
-        return
     raise Terminated()
+
+
+def _default_sigterm_in_child() -> None:
+    """A forked child (the surrogate's tile workers) gets SIGTERM's default action back at
+    once: a Python handler runs only between bytecodes, so a worker blocked in C would never
+    end when its pool terminates it, and the run would hang."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+os.register_at_fork(after_in_child=_default_sigterm_in_child)
 
 
 def _is_number(token: str) -> bool:
@@ -117,9 +117,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if getattr(args, "_missing", None):
         parser.error(args._missing)
-    global _MAIN_PID
-    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-        _MAIN_PID = os.getpid()
+    previous = signal.getsignal(signal.SIGTERM)
+    if previous is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminate)
     try:
         return int(importlib.import_module(args._module).run(args) or 0)
@@ -128,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
         if os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0":
             print(f"{what}: output written so far is kept", file=sys.stderr, flush=True)
         return 143 if isinstance(err, Terminated) else 130
+    finally:
+        if previous is signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)   # an in-process caller keeps its own
 
 
 if __name__ == "__main__":
