@@ -48,19 +48,9 @@ def run(args: argparse.Namespace) -> int:
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
         return 2
-    from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
+    from fabric_fenicsx.cli._guarded import guarded
 
-    lock = FolderLock(out, "divergence", run_id=scene.name,
-                      warn=lambda m: print(f"{PROG}: warning: {m}", file=sys.stderr, flush=True))
-    try:
-        lock.acquire()
-    except FolderLocked as err:
-        print(f"{PROG}: {err}", file=sys.stderr)
-        return 2
-    try:
-        return _twins(args, scene, twin, out)
-    finally:
-        lock.release()
+    return guarded(PROG, out, "divergence", scene.name, lambda: _twins(args, scene, twin, out))
 
 
 def _twins(args: argparse.Namespace, scene, twin, out: Path) -> int:

@@ -22,7 +22,6 @@ import sys
 from pathlib import Path
 
 from fabric_fenicsx.cli import _perturbed
-from fabric_fenicsx.studies.runpool import DISK_ERRNOS, PoolStopped
 
 PROG = "fabric-fenicsx ensemble"
 COLUMNS = ("k", "velocity", "residual_velocity", "absorbed_energy", "viscous_dissipation", "viscous_share",
@@ -62,32 +61,10 @@ def run(args: argparse.Namespace) -> int:
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
         return 2
-    from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
+    from fabric_fenicsx.cli._guarded import guarded
 
-    lock = FolderLock(out, "ensemble", run_id=scene.name,
-                      warn=lambda m: print(f"{PROG}: warning: {m}", file=sys.stderr, flush=True))
-    try:
-        lock.acquire()
-    except FolderLocked as err:
-        print(f"{PROG}: {err}", file=sys.stderr)
-        return 2
-    except OSError as err:
-        print(f"{PROG}: cannot lock the output folder {out}: {err.strerror or err}", file=sys.stderr)
-        return 1
-    try:
-        return _ensemble(args, scene, out, p)
-    except OSError as err:
-        if err.errno not in DISK_ERRNOS:
-            raise
-        where = f" ({err.filename})" if err.filename else ""
-        print(f"{PROG}: stopped: a file could not be written{where}: {err.strerror or err}; free space "
-              "and run it again: its complete members are reused", file=sys.stderr)
-        return 1
-    except PoolStopped as err:
-        print(f"{PROG}: stopped: {err}", file=sys.stderr)
-        return 1
-    finally:
-        lock.release()
+    return guarded(PROG, out, "ensemble", scene.name, lambda: _ensemble(args, scene, out, p),
+                   "its complete members are reused")
 
 
 def _ensemble(args: argparse.Namespace, scene, out: Path, p: float) -> int:

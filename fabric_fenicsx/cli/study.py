@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from fabric_fenicsx.studies.runpool import DISK_ERRNOS, PoolStopped
+from fabric_fenicsx.studies.runpool import PoolStopped
 
 PROG = "fabric-fenicsx study"
 RUN_OUTPUT = ("output.xdmf_interval=0", "output.progress_interval=0")
@@ -88,31 +88,10 @@ def run(args: argparse.Namespace) -> int:
     if problem:
         print(f"{PROG}: {problem}", file=sys.stderr)
         return 2
-    from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
+    from fabric_fenicsx.cli._guarded import guarded
 
-    lock = FolderLock(args.out, "study", run_id=args.name, warn=lambda m: _say(f"{PROG}: warning: {m}", sys.stderr))
-    try:
-        lock.acquire()
-    except FolderLocked as err:
-        print(f"{PROG}: {err}", file=sys.stderr)
-        return 2
-    except OSError as err:
-        print(f"{PROG}: cannot lock the output folder {args.out}: {err.strerror or err}", file=sys.stderr)
-        return 1
-    try:
-        return _study(args)
-    except OSError as err:
-        if err.errno not in DISK_ERRNOS:
-            raise
-        where = f" ({err.filename})" if err.filename else ""
-        print(f"{PROG}: stopped: a file could not be written{where}: {err.strerror or err}; free space "
-              "and run it again: its complete runs are reused, the others run again", file=sys.stderr)
-        return 1
-    except PoolStopped as err:
-        print(f"{PROG}: stopped: {err}", file=sys.stderr)
-        return 1
-    finally:
-        lock.release()
+    return guarded(PROG, args.out, "study", args.name, lambda: _study(args),
+                   "its complete runs are reused, the others run again")
 
 
 def _study(args) -> int:

@@ -1,0 +1,40 @@
+"""The guard around a study-like command (study, ensemble, divergence): its output folder's lock
+(:mod:`fabric_fenicsx.impact.lock`) held from before the first run to the end, and a full disk
+or a stopped pool reported in one line. Exit codes: 2 for a folder in use, 1 for a lock that
+cannot be written, a full disk or a stopped pool, else the body's."""
+from __future__ import annotations
+
+import sys
+
+
+def guarded(prog: str, out, what: str, run_id: str, body, reused: str = "its complete runs are reused") -> int:
+    """Run ``body()`` holding the lock of ``out`` as ``what``; messages are prefixed with ``prog``."""
+    from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
+    from fabric_fenicsx.studies.runpool import DISK_ERRNOS, PoolStopped
+
+    def say(text: str) -> None:
+        print(f"{prog}: {text}", file=sys.stderr, flush=True)
+
+    lock = FolderLock(out, what, run_id=run_id, warn=lambda m: say(f"warning: {m}"))
+    try:
+        lock.acquire()
+    except FolderLocked as err:
+        say(str(err))
+        return 2
+    except OSError as err:
+        say(f"cannot lock the output folder {out}: {err.strerror or err}")
+        return 1
+    try:
+        return body()
+    except OSError as err:
+        if err.errno not in DISK_ERRNOS:
+            raise
+        where = f" ({err.filename})" if err.filename else ""
+        say(f"stopped: a file could not be written{where}: {err.strerror or err}; free space and run it "
+            f"again: {reused}")
+        return 1
+    except PoolStopped as err:
+        say(f"stopped: {err}")
+        return 1
+    finally:
+        lock.release()
