@@ -24,13 +24,14 @@ damage = false
 [mesh]
 kind = "uniform"
 side = 0.08
-n = 12
+n = {n}
 [projectile]
 diameter = 0.02
 velocity = 20.0
 mass = 0.005
 [run]
 t_end = {t_end}
+release_time = 1.0
 [output]
 xdmf_interval = 0.0
 png = false
@@ -78,25 +79,26 @@ def test_two_impact_runs_into_one_folder(tmp_path):
     """The second run exits 2 naming the first before any work; the first's files are whole and
     of one run."""
     slow, quick = tmp_path / "slow.toml", tmp_path / "quick.toml"
-    slow.write_text(TINY.format(t_end=3e-4))
-    quick.write_text(TINY.format(t_end=1e-5))
+    slow.write_text(TINY.format(t_end=2e-3, n=30))     # ends at t_end only (release_time): seconds
+    quick.write_text(TINY.format(t_end=1e-5, n=12))
     out = tmp_path / "out"
     first = cli("impact", slow, "--out", out)
     t0 = time.monotonic()
-    while not (out / "run.json").exists():
+    while not (out / LOCK_NAME).exists() or not (out / "run.json").exists():
         assert first.poll() is None, first.communicate()
         assert time.monotonic() - t0 < 120
         time.sleep(0.1)
     second = cli("impact", quick, "--out", out)
     _, err2 = second.communicate(timeout=120)
+    assert first.poll() is None, "the first run ended before the second stopped: the test needs a longer one"
     assert second.returncode == 2, err2
     assert "is in use by impact run" in err2 and f"process {first.pid} " in err2
     _, err1 = first.communicate(timeout=600)
     assert first.returncode == 0, err1
     run = json.loads((out / "run.json").read_text())
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["run_id"] == run["run_id"] and run["settings"]["run"]["t_end"] == 3e-4
-    assert run["end_reason"] == summary["end_reason"]
+    assert summary["run_id"] == run["run_id"] and run["settings"]["run"]["t_end"] == 2e-3
+    assert run["end_reason"] == summary["end_reason"] == "time_limit"
     rows = (out / "history.csv").read_text().splitlines()
     assert float(rows[-1].split(",")[0]) > 1e-5          # the slow run's history, not the quick one's
     assert not (out / LOCK_NAME).exists()
