@@ -66,11 +66,13 @@ apt:
 $(PY): | apt
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
 
+# The test extra, and the cluster extra (dask.distributed) so that the tests of studies on a
+# cluster run too.
 $(STAMP): pyproject.toml constraints.txt | $(PY) apt
-	$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test]'
-	$(PY) -c "import dolfinx, pyvista, numpy, scipy; \
+	$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'
+	$(PY) -c "import dolfinx, pyvista, numpy, scipy, distributed; \
 	  assert numpy.__version__ == '1.24.2', f'numpy {numpy.__version__} in $(VENV), expected 1.24.2 (constraints.txt)'; \
-	  print('dolfinx', dolfinx.__version__, '| pyvista', pyvista.__version__, '| numpy', numpy.__version__, '| scipy', scipy.__version__)"
+	  print('dolfinx', dolfinx.__version__, '| pyvista', pyvista.__version__, '| numpy', numpy.__version__, '| scipy', scipy.__version__, '| distributed', distributed.__version__)"
 	touch $@
 
 test: $(STAMP)

@@ -6,6 +6,13 @@ Runs the scene N times, the impact velocity changed by k x ``--perturbation`` of
 absorbed energy, the viscous dissipation and its share, the deflection at damage onset, how far
 from the impact point the first yarn breaks, and the removed cells (:mod:`fabric_fenicsx.studies.ensemble`). Writes OUT/ensemble.csv (a row as each
 member ends), OUT/ensemble.json, OUT/ensemble.png and each member's output (OUT/member_<k>).
+Unless ``--quiet``, a line per member as it ends and a progress line (members done, time
+elapsed, about how long is left).
+
+``--scheduler tcp://HOST:8786`` runs the members on the workers of a dask cluster instead
+(``local:N``: N workers on this machine; :mod:`fabric_fenicsx.studies.executor`), ``--jobs`` at a
+time (default: the cluster's worker threads); OUT and the scene file must be on a file system
+every worker sees at the same path, which is checked before the first member.
 
 One ensemble at a time in a folder: it holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`)
 from before its first member to its end; a second writer into OUT stops at once (exit 2)
@@ -17,7 +24,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -32,13 +38,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     _perturbed.add_arguments(parser, "ensemble", "every member")
     parser.add_argument("-n", "--members", type=int, default=8, help="number of members (default 8)")
     parser.add_argument("--jobs", type=int, default=None,
-                        help="members run at the same time (default: the cores, at most the members)")
+                        help="members run at the same time (default: the cores, or with --scheduler the "
+                             "cluster's worker threads; at most the members)")
+    from fabric_fenicsx.cli._guarded import add_scheduler_argument
+
+    add_scheduler_argument(parser, "members")
 
 
 def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.cli.impact import _size
     from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
     from fabric_fenicsx.studies import ensemble
+    from fabric_fenicsx.studies.executor import scheduler_problem
 
     if _size() > 1:
         print(f"{PROG}: the members are processes of their own; run it without mpirun", file=sys.stderr)
@@ -51,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
         problems.append(_perturbed.perturbation_problem(p))
     if args.jobs is not None and args.jobs < 1:
         problems.append(f"--jobs must be at least 1, got {args.jobs}")
+    if scheduler_problem(args.scheduler):
+        problems.append(scheduler_problem(args.scheduler))
     if problems:
         print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
         return 2
@@ -68,10 +81,20 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _ensemble(args: argparse.Namespace, scene, out: Path, p: float) -> int:
-    from fabric_fenicsx.studies import ensemble
-    from fabric_fenicsx.studies.runpool import write_atomic
+    """Open the executor (:func:`~fabric_fenicsx.studies.executor.make_executor`), check that its
+    workers see OUT, the scene file and the fabric file it names, and run the members on it."""
+    from fabric_fenicsx.studies.executor import make_executor
 
-    jobs = min(args.members, args.jobs or len(os.sched_getaffinity(0)))
+    with make_executor(args.scheduler) as executor:
+        executor.check_shared(out, [args.scene, *([scene.fabric.file] if scene.fabric.file else [])])
+        return _members(args, scene, out, p, executor)
+
+
+def _members(args: argparse.Namespace, scene, out: Path, p: float, executor) -> int:
+    from fabric_fenicsx.studies import ensemble
+    from fabric_fenicsx.studies.runpool import Progress, write_atomic
+
+    jobs = min(args.members, args.jobs or executor.slots)
     out.mkdir(parents=True, exist_ok=True)
     table = out / "ensemble.csv"
     with open(table, "w", newline="") as f:
@@ -89,9 +112,12 @@ def _ensemble(args: argparse.Namespace, scene, out: Path, p: float) -> int:
                       f"({row['end_reason']}, {row['wall_time_s']:.0f} s)", flush=True)
 
     if not args.quiet:
-        print(f"{PROG}: {args.members} members of {scene.name}, {jobs} at a time, into {out}", flush=True)
+        where = f", on {executor.description}" if executor.remote else ""
+        print(f"{PROG}: {args.members} members of {scene.name}, {jobs} at a time, into {out}{where}", flush=True)
+    progress = None if args.quiet else Progress("ensemble", "members", say=lambda line: print(line, flush=True))
     rows = ensemble.run_members(args.scene, args.overrides, scene.projectile.velocity, args.members, out,
-                                jobs=jobs, perturbation=p, on_member=on_member)
+                                jobs=jobs, perturbation=p, on_member=on_member, executor=executor,
+                                progress=progress)
     ok = [r for r in rows if "error" not in r]
     rep = ensemble.summarise(ok, p)
     rep.update(scene=str(args.scene), overrides=list(args.overrides), failed=[r for r in rows if "error" in r])

@@ -1,5 +1,5 @@
-"""``fabric-fenicsx study NAME --out DIR [--jobs N] [--set section.key=value ...]``: the thesis's
-chapter 4 as studies (:mod:`fabric_fenicsx.studies.chapter4`).
+"""``fabric-fenicsx study NAME --out DIR [--jobs N] [--scheduler ADDRESS] [--set section.key=value ...]``:
+the thesis's chapter 4 as studies (:mod:`fabric_fenicsx.studies.chapter4`).
 
 NAME: table4, table5, table6, friction, fillet, v50 or chapter4 (all of them, and the validation
 report). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time
@@ -7,6 +7,13 @@ report). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`
 OUT/runs/<run>; a run stored with the same settings and model version is reused, so
 an interrupted study resumes. ``--set`` applies to every run. Writes OUT/NAME.md and
 OUT/NAME.json; ``chapter4`` also writes the report ``--doc`` (default docs/validation.md).
+Unless ``--quiet``, a line per run as it ends and a progress line (runs done of those planned,
+time elapsed, about how long is left).
+
+``--scheduler tcp://HOST:8786`` runs the processes on the workers of a dask cluster instead
+(``local:N``: a cluster of N workers on this machine; :mod:`fabric_fenicsx.studies.executor`),
+``--jobs`` at a time (default: the cluster's worker threads); OUT and the scene files must be on
+a file system every worker sees at the same path, which is checked before the first run.
 
 One study at a time in a folder: the study holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`)
 from before its first run to its end (also on an error or Ctrl-C); a second study, ensemble or
@@ -20,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import sys
 import time
@@ -46,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("name", metavar="NAME", help=f"the study: {', '.join(STUDIES)}")
     parser.add_argument("--out", default=None, help="output folder (default out/study-NAME)")
-    parser.add_argument("--jobs", type=int, default=None, help="runs at the same time (default: the cores)")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="runs at the same time (default: the cores; with --scheduler, the cluster's worker threads)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a scene key of every run (repeatable)")
     parser.add_argument("--members", type=int, default=None,
@@ -54,11 +61,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "at least 2)")
     parser.add_argument("--tol", type=float, default=0.5, help="v50: width of the final bracket (m/s, default 0.5)")
     parser.add_argument("--doc", default="docs/validation.md", help="chapter4: the report to write")
+    parser.add_argument("--quiet", action="store_true", help="no line per run and no progress lines")
+    from fabric_fenicsx.cli._guarded import add_scheduler_argument
+
+    add_scheduler_argument(parser, "runs")
 
 
 def _check(args) -> str | None:
     from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
     from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.executor import scheduler_problem
 
     if args.name not in chapter4.STUDIES:
         return f"unknown study {args.name!r}; the studies are {', '.join(chapter4.STUDIES)}"
@@ -68,6 +80,8 @@ def _check(args) -> str | None:
         return f"--members must be at least 1, got {args.members}"
     if not args.tol > 0:
         return f"--tol must be positive, got {args.tol}"
+    if scheduler_problem(args.scheduler):
+        return scheduler_problem(args.scheduler)
     try:
         for scene in chapter4.SCENES.values():
             load_scene(str(chapter4.SCENE_DIR / scene), [*RUN_OUTPUT, *args.overrides])
@@ -95,31 +109,44 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _study(args) -> int:
+    """Open the executor (:func:`~fabric_fenicsx.studies.executor.make_executor`), check that its
+    workers see OUT and the scene files, and run the study on it."""
     from fabric_fenicsx.studies import chapter4
-    from fabric_fenicsx.studies.runpool import run_all, write_atomic
+    from fabric_fenicsx.studies.executor import make_executor
 
     t0 = time.perf_counter()
+    with make_executor(args.scheduler) as executor:
+        scenes = {str(chapter4.SCENE_DIR / s) for s in chapter4.SCENES.values()}
+        executor.check_shared(args.out, sorted(scenes))
+        return _run_study(args, executor, t0)
+
+
+def _run_study(args, executor, t0: float) -> int:
+    from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.runpool import Progress, run_all, write_atomic
+
     out = Path(args.out)
-    jobs = args.jobs or len(os.sched_getaffinity(0))
+    jobs = args.jobs or executor.slots
     overrides = (*RUN_OUTPUT, *args.overrides)
     runs = chapter4.plan(args.name, overrides)
-    print(f"{PROG} {args.name}: {len(runs)} runs, {jobs} at a time, into {out / 'runs'}", flush=True)
+    where = f", on {executor.description}" if executor.remote else ""
+    print(f"{PROG} {args.name}: {len(runs)} runs, {jobs} at a time, into {out / 'runs'}{where}", flush=True)
+    counter = Progress("study", "runs", say=None if args.quiet else _say)
 
     def progress(run, summary, reused):
-        what = "stored" if reused else "done"
-        if "error" in summary:
-            _say(f"  {run.key}: failed ({summary['error']})")
-        else:
-            _say(f"  {run.key}: {what}, residual {summary['residual_velocity']:.2f} m/s, absorbed "
-                 f"{summary['absorbed_energy']:.2f} J ({summary['end_reason']})")
+        if not args.quiet:
+            _say(_run_line(run, summary, reused))
+        counter.finished(summary, reused)
 
     wave_run = _wave_run(overrides) if args.name == "chapter4" else None
-    results = run_all(runs + [wave_run] * (wave_run is not None), out / "runs", jobs=jobs, on_done=progress)
+    counter.expect(len(runs) + (wave_run is not None))
+    results = run_all(runs + [wave_run] * (wave_run is not None), out / "runs", jobs=jobs, on_done=progress,
+                      executor=executor)
     waves = _wave_speeds(wave_run, results.pop(wave_run.key), out / "runs") if wave_run else {}
     limits = {}
     if args.name in ("v50", "chapter4"):
         limits = _ballistic_limits(overrides, results, out / "runs", jobs, args.members or max(2, jobs), args.tol,
-                                   progress)
+                                   progress, executor, counter)
     wall = time.perf_counter() - t0
     report = {"study": args.name, "overrides": list(args.overrides), "wall_time_s": wall,
               "runs": results, "v50": limits, "waves": waves}
@@ -139,6 +166,14 @@ def _study(args) -> int:
     print(f"{PROG} {args.name}: {len(results) - len(failed)} of {len(results)} runs, wall time "
           f"{wall / 60:.1f} min; report {out / (args.name + '.md')}")
     return 1 if failed else 0
+
+
+def _run_line(run, summary: dict, reused: bool) -> str:
+    """The line of one run that ended: its residual velocity and absorbed energy, or its error."""
+    if "error" in summary:
+        return f"  {run.key}: failed ({summary['error']})"
+    return (f"  {run.key}: {'stored' if reused else 'done'}, residual {summary['residual_velocity']:.2f} m/s, "
+            f"absorbed {summary['absorbed_energy']:.2f} J ({summary['end_reason']})")
 
 
 def _wave_run(overrides):
@@ -165,11 +200,12 @@ def _wave_speeds(run, done: dict, runs_dir: Path) -> dict:
 
 
 def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, members: int, tol: float,
-                      progress) -> dict:
+                      progress, executor=None, counter=None) -> dict:
     """The ballistic limit of each scene: :func:`~fabric_fenicsx.studies.limit.bisect_limit` from
     :func:`~fabric_fenicsx.studies.chapter4.v50_start` (on the table runs in ``results``),
     ``members`` runs per velocity (V0 changed by k x 1e-12); the four scenes side by side in
-    threads whose runs share ``jobs`` processes."""
+    threads whose runs share ``jobs`` processes of ``executor``; ``counter`` (a
+    :class:`~fabric_fenicsx.studies.runpool.Progress`) is told of each velocity's runs."""
     import threading
 
     from fabric_fenicsx.studies import chapter4
@@ -192,7 +228,9 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
 
         def evaluate(v):
             runs = [chapter4.v50_run(scene, v, k, overrides) for k in offsets(members)]
-            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress, slots=slots, stop=stop)
+            if counter is not None:
+                counter.expect(len(runs))
+            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress, slots=slots, stop=stop, executor=executor)
             bad = [k for k, s in done.items() if "error" in s]
             if bad:
                 raise RuntimeError(f"v50 of {scene}: run {bad[0]} failed ({done[bad[0]]['error']}); "

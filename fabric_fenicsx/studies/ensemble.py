@@ -9,9 +9,9 @@ itself (k = 0, 1, -1, 2, -2, ...) and reports each member and the statistics of 
 mean, standard deviation, the 95 % confidence interval of the mean (Student t) and the range.
 
 The statistics are pure numpy/scipy; :func:`run_members` starts the members as separate
-``fabric-fenicsx impact`` processes, ``jobs`` at a time, and reports each as it finishes, so an
-interrupted ensemble keeps the members it has (and reuses them when it is run again). The command line is
-``fabric-fenicsx ensemble SCENE``.
+``fabric-fenicsx impact`` processes, ``jobs`` at a time (here or on a dask cluster), and reports
+each as it finishes, so an interrupted ensemble keeps the members it has (and reuses them when it
+is run again). The command line is ``fabric-fenicsx ensemble SCENE``.
 """
 from __future__ import annotations
 
@@ -109,12 +109,15 @@ def format_summary(rep: dict) -> str:
 
 
 def run_members(scene: str, overrides: list[str], v0: float, n: int, out_dir: str | Path,
-                jobs: int = 1, perturbation: float = PERTURBATION, on_member=None) -> list[dict]:
+                jobs: int = 1, perturbation: float = PERTURBATION, on_member=None, executor=None,
+                progress=None) -> list[dict]:
     """Run the n members of an ensemble of the scene file ``scene`` (with ``overrides``, the
     impact velocity v0 (1 + k perturbation)) as ``fabric-fenicsx impact`` processes, ``jobs`` at
     a time (:func:`fabric_fenicsx.studies.runpool.run_all`, which reuses a member stored with the
     same settings), into ``out_dir``/member_<k>; ``on_member(row)`` is called as each one ends (a
-    failed member's row has ``error``: the exit code and the last line of its log). Returns the
+    failed member's row has ``error``: the exit code and the last line of its log), then
+    ``progress`` (a :class:`~fabric_fenicsx.studies.runpool.Progress`) counts it. ``executor``:
+    where the processes run (:mod:`fabric_fenicsx.studies.executor`; default here). Returns the
     rows in the order of :func:`offsets`."""
     from fabric_fenicsx.studies.runpool import Run, run_all
 
@@ -128,8 +131,12 @@ def run_members(scene: str, overrides: list[str], v0: float, n: int, out_dir: st
                    else member_row(k, v, summary))
         if on_member is not None:
             on_member(rows[k])
+        if progress is not None:
+            progress.finished(summary, reused)
 
-    run_all(runs, out_dir, jobs=jobs, on_done=done)
+    if progress is not None:
+        progress.expect(len(runs))
+    run_all(runs, out_dir, jobs=jobs, on_done=done, executor=executor)
     return [rows[k] for k in offsets(n)]
 
 

@@ -31,22 +31,28 @@ temporary file in the same folder, then ``os.replace``), so none is ever left em
 A run's outcome that cannot be recorded, and a run that failed because its disk is full, stop
 the pool: the running processes are ended (SIGTERM; they run again when the study is resumed)
 and :class:`PoolStopped` is raised with one line that says why and what to do.
+
+Where the processes run is the executor's business (:mod:`fabric_fenicsx.studies.executor`):
+child processes of this one by default, or the workers of a dask cluster; what to reuse, what a
+failure means and what is recorded is decided here, on the submitting side, the same for both.
+A run whose cluster worker was lost is not recorded either (it runs again). :class:`Progress`
+counts a study's runs as they end, for its progress line.
 """
 from __future__ import annotations
 
 import errno
 import json
 import os
-import signal
-import subprocess
 import sys
+import threading
 import time
+import uuid
 import zipfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-__all__ = ["Run", "run_all", "PoolStopped", "incomplete", "expected_files", "surroundings", "write_atomic",
-           "DISK_ERRNOS"]
+__all__ = ["Run", "run_all", "PoolStopped", "Progress", "duration", "incomplete", "expected_files", "surroundings",
+           "write_atomic", "DISK_ERRNOS"]
 
 DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO)
 """Errors of a disk rather than of the model: full, over quota, file too large, read-only, I/O."""
@@ -189,19 +195,29 @@ def _resume_hint(out_dir: Path) -> str:
 
 
 def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, reuse: bool = True,
-            slots=None, stop=None) -> dict:
+            slots=None, stop=None, executor=None) -> dict:
     """Run (or, with ``reuse``, take the stored result of) every run, ``jobs`` processes at a
     time; ``on_done(run, summary, reused)`` is called as each one ends. ``slots``: a
     ``threading.Semaphore`` shared by calls in other threads, of which every process holds one
     while it runs (so that concurrent calls together keep to the cores). ``stop``: a
     ``threading.Event`` shared with those calls: set when one of them stops, it stops the others.
-    Returns ``{key: summary}`` (a failed run: ``{"error": ...}``). Raises :class:`PoolStopped`
-    when an outcome cannot be recorded or a run failed on a full disk (see the module's
-    docstring)."""
+    ``executor``: where the processes run (:mod:`fabric_fenicsx.studies.executor`; default
+    child processes of this one); on a cluster the folders and scene files are given to the
+    workers as absolute paths. Returns ``{key: summary}`` (a failed run: ``{"error": ...}``).
+    Raises :class:`PoolStopped` when an outcome cannot be recorded or a run failed on a full disk
+    (see the module's docstring)."""
+    from fabric_fenicsx.studies.executor import LocalProcesses
+
     out_dir = Path(out_dir)
     keys = [r.key for r in runs]
     if len(set(keys)) != len(keys):
         raise ValueError(f"the runs' keys must differ (they name their folders), got {keys}")
+    own = executor is None
+    executor = LocalProcesses() if own else executor
+    given = {r.key: r for r in runs}                # on_done gets the runs as given
+    if executor.remote:
+        out_dir = Path(os.path.abspath(out_dir))
+        runs = [replace(r, scene=os.path.abspath(r.scene)) for r in runs]
     results: dict[str, dict] = {}
     pending = []
     for run in runs:
@@ -209,11 +225,10 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
         if stored is not None:
             results[run.key] = stored
             if on_done is not None:
-                on_done(run, stored, True)
+                on_done(given[run.key], stored, True)
         else:
             pending.append(run)
     running: dict = {}
-    env = dict(os.environ, OMP_NUM_THREADS="1")
     try:
         while pending or running:
             if stop is not None and stop.is_set():
@@ -221,42 +236,68 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
             while pending and len(running) < max(1, jobs) and (slots is None or slots.acquire(blocking=False)):
                 run = pending.pop(0)
                 try:
-                    running[run.key] = _start(run, out_dir / run.key, env)
+                    running[run.key] = _start(run, out_dir / run.key, executor)
                 except BaseException as err:
                     if slots is not None:
                         slots.release()
                     if isinstance(err, OSError):
-                        raise PoolStopped(f"run {run.key} cannot be started in {out_dir / run.key}: "
-                                          f"{err.strerror or err}; {_resume_hint(out_dir)}") from None
+                        raise _not_started(run, out_dir, err) from None
                     raise
             time.sleep(0.2)
-            for key in [k for k, (p, *_) in running.items() if p.poll() is not None]:
-                proc, run, folder, log = running.pop(key)
-                log.close()
+            for key in [k for k, (future, *_) in running.items() if future.done()]:
+                future, token, run, folder = running.pop(key)
                 if slots is not None:
                     slots.release()
-                results[key] = _finished(run, folder, proc.returncode, out_dir)
+                results[key] = _outcome(future, run, folder, out_dir, executor)
                 if on_done is not None:
-                    on_done(run, results[key], False)
+                    on_done(given[key], results[key], False)
     except BaseException as err:
-        _end(running, slots)
+        _end(running, slots, executor)
         if isinstance(err, PoolStopped) and stop is not None:
             stop.set()
         raise
+    finally:
+        if own:
+            executor.close()
     return {k: results[k] for k in keys}
 
 
-def _start(run: Run, folder: Path, env: dict):
+def _not_started(run: Run, out_dir: Path, err: OSError) -> PoolStopped:
+    """The stop of a pool whose run could not be started (its folder or log cannot be written)."""
+    return PoolStopped(f"run {run.key} cannot be started in {out_dir / run.key}: {err.strerror or err}; "
+                       f"{_resume_hint(out_dir)}")
+
+
+def _start(run: Run, folder: Path, executor):
+    """Submit the run's process to ``executor`` (:func:`fabric_fenicsx.studies.executor.run_process`)
+    into a fresh ``folder``; (future, token, run, folder)."""
+    from fabric_fenicsx.studies.executor import PYTHON, run_process
+
     folder.mkdir(parents=True, exist_ok=True)
     for name in ("summary.json", "failed.json"):
         (folder / name).unlink(missing_ok=True)     # never read an older run's
-    log = open(folder / "run.log", "w")
+    command = _command(run, folder)
+    if executor.remote:
+        command = [PYTHON if i == 0 and a == sys.executable else a for i, a in enumerate(command)]
+    token = f"{run.key}-{uuid.uuid4().hex}"
+    return executor.submit(run_process, token, command, str(folder), {"OMP_NUM_THREADS": "1"}), token, run, folder
+
+
+def _outcome(future, run: Run, folder: Path, out_dir: Path, executor) -> dict:
+    """The outcome of a run whose future is done: :func:`_finished` on its exit code; a row with
+    ``error`` (not recorded) if its worker was lost; :class:`PoolStopped` if it could not start."""
     try:
-        proc = subprocess.Popen(_command(run, folder), stdout=log, stderr=subprocess.STDOUT, env=env)
-    except BaseException:
-        log.close()
+        code = future.result()
+    except (KeyboardInterrupt, SystemExit):
         raise
-    return proc, run, folder, log
+    except BaseException as err:
+        lost = executor.lost(err)
+        if lost:
+            return {"error": f"not run to its end: {lost}"}
+        if isinstance(err, OSError):
+            raise _not_started(run, out_dir, err) from None
+        raise
+    return _finished(run, folder, code, out_dir)
 
 
 def _finished(run: Run, folder: Path, code: int, out_dir: Path) -> dict:
@@ -288,22 +329,15 @@ def _finished(run: Run, folder: Path, code: int, out_dir: Path) -> dict:
     return failure
 
 
-def _end(running: dict, slots) -> None:
+def _end(running: dict, slots, executor) -> None:
     """End the running processes (SIGTERM, then SIGKILL after 10 s): they run again later."""
-    for proc, *_ in running.values():
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-    t0 = time.monotonic()
-    for proc, run, folder, log in running.values():
-        try:
-            proc.wait(timeout=max(0.1, 10.0 - (time.monotonic() - t0)))
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        log.close()
+    try:
+        executor.end({token: future for future, token, *_ in running.values()})
+    finally:
         if slots is not None:
-            slots.release()
-    running.clear()
+            for _ in running:
+                slots.release()
+        running.clear()
 
 
 def _record_failure(run: Run, folder: Path, summary: dict) -> None:
@@ -318,3 +352,54 @@ def _record_failure(run: Run, folder: Path, summary: dict) -> None:
         return
     write_atomic(folder / "failed.json", json.dumps({**summary, "cause": "model", "settings": settings,
                                                      "model_version": model_version()}, indent=1))
+
+
+def duration(seconds: float) -> str:
+    """A span of time as a person says it: ``45 s``, ``2 min 10 s``, ``1 h 05 min``."""
+    s = max(0, int(round(seconds)))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
+class Progress:
+    """A study's runs counted as they end, for one progress line each (:meth:`finished`): runs
+    done of the runs planned so far (:meth:`expect`), how many of them were reused or failed,
+    the time since the study began and an estimate of the time left: the runs still to do times
+    the time per run run so far (reused runs take none). Thread-safe (the ballistic limits'
+    threads share one). ``say``: called with each line (None: lines are only returned)."""
+
+    def __init__(self, label: str = "study", noun: str = "runs", say=None, clock=time.monotonic):
+        self.label, self.noun, self.say, self.clock = label, noun, say, clock
+        self.t0 = clock()
+        self.total = self.done = self.reused = self.failed = 0
+        self._lock = threading.Lock()
+
+    def expect(self, n: int) -> None:
+        """``n`` more runs are planned."""
+        with self._lock:
+            self.total += n
+
+    def finished(self, summary: dict, reused: bool) -> str:
+        """Count one run that ended (``summary``: its summary, or a row with ``error``); its line."""
+        with self._lock:
+            self.done += 1
+            self.reused += bool(reused)
+            self.failed += "error" in summary
+            line = self.line()
+        if self.say is not None:
+            self.say(line)
+        return line
+
+    def line(self) -> str:
+        """``study: 3/8 runs done (1 reused), 2 min 10 s elapsed, about 4 min 20 s left``."""
+        elapsed = self.clock() - self.t0
+        apart = [f"{n} {what}" for n, what in ((self.reused, "reused"), (self.failed, "failed")) if n]
+        text = (f"{self.label}: {self.done}/{self.total} {self.noun} done"
+                + (f" ({', '.join(apart)})" if apart else "") + f", {duration(elapsed)} elapsed")
+        ran, left = self.done - self.reused, self.total - self.done
+        if left > 0:
+            text += f", about {duration(elapsed / ran * left)} left" if ran else ", time left not known yet"
+        return text
