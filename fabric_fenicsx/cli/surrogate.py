@@ -1,4 +1,5 @@
-"""``fabric-fenicsx surrogate build | report``: tabulate the unit cell, or measure its error."""
+"""``fabric-fenicsx surrogate build | report | ship``: tabulate the unit cell, measure its error,
+or rewrite the table tiles shipped with the package (:mod:`fabric_fenicsx.surrogate.ship`)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,10 @@ def _positive_float(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("action", choices=("build", "report"),
-                        help="build: solve and cache the tables; report: error against direct solves and time")
+    parser.add_argument("action", choices=("build", "report", "ship"),
+                        help="build: solve and cache the tables; report: error against direct solves and time; "
+                             "ship: solve the tiles shipped with the package again (the tables and tiles its "
+                             "shipped/tables.json lists; --fabric, --resolution, ... do not apply)")
     parser.add_argument("--fabric", help="fabric TOML file (default: Zylon AS of the thesis, Table 1)")
     parser.add_argument("--bending", choices=("max", "min"), default="max",
                         help="bending stiffness bound of the Zylon preset (default max)")
@@ -32,6 +35,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", help="for report: output folder")
     parser.add_argument("--states", type=int, default=300, help="for report: random states (default 300)")
     parser.add_argument("--seed", type=int, default=0, help="for report: random seed (default 0)")
+    parser.add_argument("--add-from", action="append", default=[], metavar="CACHE",
+                        help="for ship: also ship the tiles this cache folder holds for a shipped "
+                             "table (the cache of scene runs started from an empty one); repeatable")
+    parser.add_argument("--shipped", metavar="DIR",
+                        help="for ship: the folder of shipped tiles (default: the package's)")
 
 
 def _fabric(args):
@@ -40,6 +48,16 @@ def _fabric(args):
 
 
 def run(args) -> int:
+    if args.action == "ship":
+        from fabric_fenicsx.surrogate.ship import ship
+        t0 = time.perf_counter()
+        try:
+            rows = ship(args.shipped, args.add_from, workers=args.workers)
+        except ValueError as err:
+            raise SystemExit(f"surrogate ship: {err}") from None
+        total = sum(r["bytes"] for r in rows)
+        print(f"shipped {len(rows)} table(s), {total / 1e6:.2f} MB, in {time.perf_counter() - t0:.1f} s")
+        return 0
     fabric = _fabric(args)
     if args.action == "build":
         from fabric_fenicsx.surrogate.table import Surrogate

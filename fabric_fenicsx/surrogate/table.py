@@ -34,6 +34,7 @@ from fabric_fenicsx.surrogate.kernels import damage as damage_kernel
 from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
 from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
+from fabric_fenicsx.surrogate.ship import ShippedTiles
 from fabric_fenicsx.surrogate.tiles import (QUANTITIES, Progress, cache_key, cache_problem, default_cache_dir,
                                   load_tile, save_tile, solve_blocks, warn_unwritable)
 from fabric_fenicsx.material.damage_solver import BRACKETED, UNCONVERGED, FallbackLog
@@ -113,6 +114,10 @@ class Surrogate:
         ``False`` disables the disk cache. A cache that cannot be written (read-only, a file,
         a full disk) is still read; new tiles then stay in memory, said once by a
         :class:`~fabric_fenicsx.surrogate.tiles.CacheWarning`.
+    shipped : where tiles missing from the cache are read (and copied into the cache) before
+        they are solved: True (the tiles shipped with the package,
+        :mod:`~fabric_fenicsx.surrogate.ship`), a folder of the same layout, or False; not read
+        when ``cache_dir`` is False.
     workers : processes for solving tiles (default: all cores).
     progress : show a progress bar while solving tiles.
     """
@@ -120,7 +125,7 @@ class Surrogate:
     def __init__(self, fabric: Fabric, resolution: float = 0.002, r_nodes: int = 11, order: int = 3,
                  E_min: float = -0.06, n_elements: int | None = None, tile: int = 16,
                  cache_dir: str | Path | None | bool = None, workers: int | None = None,
-                 progress: bool = True):
+                 progress: bool = True, shipped: bool | str | Path = True):
         if not isinstance(fabric, Fabric):
             raise ValueError(f"fabric must be a Fabric, got {fabric!r}")
         if not (isinstance(resolution, (int, float)) and 0 < resolution <= 0.01):
@@ -187,6 +192,8 @@ class Surrogate:
             self.cache_writable = problem is None
             if problem:
                 warn_unwritable(problem)
+        self.shipped = (None if cache_dir is False or shipped is False
+                        else ShippedTiles(self.key, None if shipped is True else shipped))
         self.stats = RangeStats()
         self.solves = 0
         self.build_seconds = 0.0
@@ -220,6 +227,10 @@ class Surrogate:
                      else (2, len(ia), len(jb), nr - 1, len(QUANTITIES)))
             path = self._tile_path(layer, a, b)
             values = load_tile(path, self.key, shape, self._tile_name(layer, a, b)) if path else None
+            if values is None and self.shipped is not None:
+                values = self.shipped.load(self._tile_name(layer, a, b), shape)
+                if values is not None:
+                    self._save(layer, a, b, values)  # the cache then holds what the run used
             if values is not None:
                 self._store(layer, a, b, values)
             else:
@@ -641,7 +652,8 @@ class Surrogate:
         built = {k: int(v.sum()) for k, v in self.built.items()}
         return (f"surrogate {self.key}: h = {self.h:g}, r nodes = {self.r_nodes}, order = {self.order}, "
                 f"E in [{self.E_table[0]:g}, {self.E_table[1]:g}] ({self.nE} nodes per axis with ghosts), "
-                f"tiles built {built} of {self.n_tiles ** 2} per layer, cache {self.cache_dir}")
+                f"tiles built {built} of {self.n_tiles ** 2} per layer "
+                f"({self.shipped.used if self.shipped else 0} of them shipped), cache {self.cache_dir}")
 
 
 def lambda_tangent(E1, E2, dE1, dE2):

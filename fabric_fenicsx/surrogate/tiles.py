@@ -13,6 +13,16 @@ the table) and a checksum covering both and the data, and is rebuilt when any do
 folder, a path naming a file, a full disk) does not stop a run: new tiles are kept in memory
 and a :class:`CacheWarning` says so once (:func:`cache_problem`, :func:`warn_unwritable`,
 :func:`report_cache_problems`).
+
+One cache folder may be shared by many processes at once (the workers of a cluster, on one
+machine or several, each with threads). No lock is taken: two processes that miss the same tile
+both solve it, and that race only costs time. A tile's values depend on nothing but its key and
+its name (each block starts from the reference state), so both writers write the same values;
+each writes a complete file under a temporary name of its own in the same folder (host, process,
+thread and a random part: :func:`save_tile`) and renames it over the tile's name with
+:func:`os.replace`, which is atomic within a folder (also on NFS). A reader opens the tile's
+name only, so it sees no file, the old one or a whole new one, never a half-written one; and a
+file that fails its checksum anyway (a crash of the disk) is solved again.
 """
 
 from __future__ import annotations
@@ -23,7 +33,10 @@ import multiprocessing
 import os
 import sys
 import tempfile
+import socket
+import threading
 import time
+import uuid
 import warnings
 import zlib
 from pathlib import Path
@@ -83,14 +96,29 @@ def load_tile(path: Path, key: str, shape: tuple, tile: str) -> np.ndarray | Non
     return values if ok else None
 
 
-def save_tile(path: Path, key: str, values: np.ndarray, tile: str) -> None:
-    """Write tile ``tile`` atomically (a temporary file, then a rename); OSError if it cannot
-    be written (no partial file is left)."""
+def temporary_name(path: Path) -> Path:
+    """A name for writing ``path`` that no other writer uses: in the same folder (so that
+    :func:`os.replace` is a rename), hidden, ending in ``.tmp`` (not a tile's name), and unique
+    across hosts, processes and threads sharing the folder."""
+    host = "".join(c for c in socket.gethostname() if c.isalnum() or c in "-_")[:32] or "host"
+    tag = f"{host}-{os.getpid()}-{threading.get_ident()}-{uuid.uuid4().hex[:12]}"
+    return path.with_name(f".{path.name}.{tag}.tmp")
+
+
+def save_tile(path: Path, key: str, values: np.ndarray, tile: str, compress: bool = False) -> None:
+    """Write tile ``tile`` atomically: the whole file under a :func:`temporary_name`, flushed
+    to the disk, then renamed over ``path`` (another writer of the same tile at the same time
+    writes its own file; the last rename wins, and each is complete). ``compress``: zip-deflated
+    (smaller, slower to read). OSError if it cannot be written (no partial file is left)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
+    tmp = temporary_name(path)
+    save = np.savez_compressed if compress else np.savez
     try:
-        np.savez(tmp, values=values, key=np.array(key), tile=np.array(tile),
+        with open(tmp, "xb") as f:
+            save(f, values=values, key=np.array(key), tile=np.array(tile),
                  checksum=np.array(_checksum(values, key, tile)))
+            f.flush()
+            os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
