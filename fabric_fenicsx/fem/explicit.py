@@ -43,6 +43,7 @@ import time
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
 from fabric_fenicsx.fem.timestep import stable_dt as damped_courant_limit
 from fabric_fenicsx.material.contract import DamageState
@@ -290,27 +291,18 @@ class CentralDifference:
         f_diss = m.dissipative_force()
         t3 = time.perf_counter()
 
-        if self.beta > 0.0 and self._dt_prev > 0.0:
-            f_damp = (self.beta / self._dt_prev) * (f_int - self._f_int)
-        else:
-            f_damp = np.zeros(n)
-        residual = f_ext - f_int - f_damp
-        acc = residual * self._inv_mass_free
-
+        damping = self.beta / self._dt_prev if self.beta > 0.0 and self._dt_prev > 0.0 else 0.0
+        f_damp, residual, acc = np.empty(n), np.empty(n), np.empty(n)
         # Trapezoidal work over [t_{n-1}, t_n]; reactions act on clamped dofs only.
-        du = self._du
+        local = np.zeros(7)
+        _forces_and_works(f_int, f_ext, self._f_int, self._f_ext, self._f_damp, self._inv_mass_free,
+                          self._du, self.v, self.mass, damping, 0.5 * self._dt_prev, f_damp, residual,
+                          acc, local)
         c = self.clamped
-        local = np.array([
-            0.5 * np.dot(f_int + self._f_int, du),
-            0.5 * np.dot(f_ext + self._f_ext, du),
-            -0.5 * np.dot(residual[c] + self._res_c, du[c]),
-            0.5 * np.dot(f_damp + self._f_damp, du),
-            0.0 if f_diss is None else 0.5 * np.dot(f_diss + self._f_diss, du),
-            0.0,
-            float(np.sum(E1) + np.sum(E2) + np.sum(P1) + np.sum(P2)),
-        ])
-        v_full = self.v + (0.5 * self._dt_prev) * acc
-        local[5] = 0.5 * np.dot(self.mass * v_full, v_full)
+        local[2] = -0.5 * np.dot(residual[c] + self._res_c, self._du[c])
+        if f_diss is not None:
+            local[4] = 0.5 * np.dot(f_diss + self._f_diss, self._du)
+        local[6] = float(np.sum(E1) + np.sum(E2) + np.sum(P1) + np.sum(P2))
         total = np.empty_like(local)
         m.comm.Allreduce(local, total, op=MPI.SUM)
         if not np.all(np.isfinite(total)):
@@ -324,9 +316,7 @@ class CentralDifference:
         self._works += total[:5]
         self.energy = EnergyRecord(self.time, float(total[5]), *map(float, self._works))
 
-        self.v += (0.5 * (self._dt_prev + dt)) * acc
-        np.multiply(self.v, dt, out=self._du)
-        self.u += self._du
+        _leapfrog(self.v, self.u, self._du, acc, 0.5 * (self._dt_prev + dt), dt)
         m.u.x.scatter_forward()
 
         self._f_int, self._f_ext, self._f_damp = f_int, f_ext, f_damp
@@ -343,3 +333,33 @@ class CentralDifference:
         tm["assembly"] += t3 - t2
         tm["rest"] += t4 - t3
         return self.energy
+
+
+@njit(cache=True, nogil=True)
+def _forces_and_works(f_int, f_ext, f_int_prev, f_ext_prev, f_damp_prev, inv_mass, du, v, mass,
+                      damping, half_dt_prev, f_damp, residual, acc, works):
+    """One pass over the dofs of :meth:`CentralDifference.step`: the damping force
+    damping (f_int - f_int_prev), the residual f_ext - f_int - f_damp, the acceleration, and
+    into ``works`` the trapezoidal work increments of f_int (0), f_ext (1) and f_damp (3) over
+    ``du`` and the kinetic energy of the full-step velocity v + half_dt_prev a (5)."""
+    w_int = w_ext = w_damp = kinetic = 0.0
+    for k in range(f_int.size):
+        fd = damping * (f_int[k] - f_int_prev[k])
+        r = f_ext[k] - f_int[k] - fd
+        a = r * inv_mass[k]
+        f_damp[k], residual[k], acc[k] = fd, r, a
+        w_int += (f_int[k] + f_int_prev[k]) * du[k]
+        w_ext += (f_ext[k] + f_ext_prev[k]) * du[k]
+        w_damp += (fd + f_damp_prev[k]) * du[k]
+        vf = v[k] + half_dt_prev * a
+        kinetic += mass[k] * vf * vf
+    works[0], works[1], works[3], works[5] = 0.5 * w_int, 0.5 * w_ext, 0.5 * w_damp, 0.5 * kinetic
+
+
+@njit(cache=True, nogil=True)
+def _leapfrog(v, u, du, acc, dt_mid, dt):
+    """v += dt_mid a; du = dt v; u += du (the central-difference update of the owned dofs)."""
+    for k in range(v.size):
+        v[k] += dt_mid * acc[k]
+        du[k] = v[k] * dt
+        u[k] += du[k]

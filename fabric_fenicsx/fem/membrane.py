@@ -27,6 +27,8 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from fabric_fenicsx.fem.packing import CoefficientPacker
+from fabric_fenicsx.fem.point_strains import PointStrains
 from fabric_fenicsx.fem.terms import MembraneTerm, YarnTerm
 
 __all__ = ["Membrane", "yarn_directions"]
@@ -131,10 +133,11 @@ class Membrane:
         # keep an index map for the case it ever does not.
         self._qdofs = None if np.array_equal(qdofs, np.arange(self.n_points)) else qdofs
 
-        E = ufl.as_vector([0.5 * (ufl.dot(self.a1, self.a1) - 1.0),
-                           0.5 * (ufl.dot(self.a2, self.a2) - 1.0)])
-        self._strain_expr = fem.Expression(E, points, jit_params=dict(self.jit_params))
-        self._strain_buf = np.zeros((self.n_cells, 2 * self.n_points_per_cell))
+        self._points = points
+        self._strain_expr = None
+        nodes = self.V.dofmap.list.array.reshape(-1, self.V.dofmap.dof_layout.num_dofs)[:self.n_cells]
+        self._point_strains = PointStrains(nodes, self.V.tabulate_dof_coordinates()[:, :2][nodes],
+                                           cell_name, points, L1, L2)
 
         detJ = fem.Expression(abs(ufl.JacobianDeterminant(msh)), points).eval(self._cells)
         self.quadrature_weights_detJ = (detJ * weights[np.newaxis, :]).ravel()
@@ -243,8 +246,18 @@ class Membrane:
     # ---------------------------------------------------------------- point data (numpy)
     def yarn_strains(self) -> tuple[np.ndarray, np.ndarray]:
         """Yarn Lagrangian strains E1, E2 = (lambda_i^2 - 1) / 2 (Eq. 2-3) at the owned
-        quadrature points (cell-major), from the current displacement (ghosts must be current)."""
-        vals = self._strain_expr.eval(self._cells, self._strain_buf)
+        quadrature points (cell-major), from the current displacement (ghosts must be current),
+        by the compiled point loop of :class:`~fabric_fenicsx.fem.point_strains.PointStrains`."""
+        return self._point_strains(self.u.x.array)
+
+    def yarn_strains_expression(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`yarn_strains` evaluated by DOLFINx from the UFL expression of E_i (compiled
+        on first use): the reference the compiled point loop is tested against."""
+        if self._strain_expr is None:
+            E = ufl.as_vector([0.5 * (ufl.dot(self.a1, self.a1) - 1.0),
+                               0.5 * (ufl.dot(self.a2, self.a2) - 1.0)])
+            self._strain_expr = fem.Expression(E, self._points, jit_params=dict(self.jit_params))
+        vals = self._strain_expr.eval(self._cells, np.zeros((self.n_cells, 2 * self.n_points_per_cell)))
         vals = vals.reshape(self.n_cells, self.n_points_per_cell, 2)
         return vals[:, :, 0].ravel(), vals[:, :, 1].ravel()
 
@@ -293,14 +306,15 @@ class Membrane:
         key = tuple(id(t) for t in self.terms)
         if self._form is None or key != self._form_key:
             self._form = [fem.form(part, jit_params=dict(self.jit_params)) for part in self._weak_form_parts()]
+            self._packers = [CoefficientPacker(form) for form in self._form]
             self._form_key = key
             self._per_cell_terms = [term for term in self.terms if term.per_cell]
             self._b = la.create_petsc_vector(self.V.dofmap.index_map, self.V.dofmap.index_map_bs)
         b = self._b
         with b.localForm() as b_local:
             b_local.set(0.0)
-        for form in self._form:
-            fem_petsc.assemble_vector(b, form)     # adds into b
+        for form, packer in zip(self._form, self._packers):
+            fem_petsc.assemble_vector(b, form, coeffs=packer.pack())     # adds into b
         if self._per_cell_terms:
             with b.localForm() as b_local:
                 for term in self._per_cell_terms:
@@ -327,13 +341,14 @@ class Membrane:
                 rule = tuple(sorted(dx.metadata().items()))
                 parts[rule] = parts.get(rule, 0) + self.live * term.integrand(self) * dx
             self._diss_form = [fem.form(part, jit_params=dict(self.jit_params)) for part in parts.values()]
+            self._diss_packers = [CoefficientPacker(form) for form in self._diss_form]
             self._diss_key = key
             self._diss_b = la.create_petsc_vector(self.V.dofmap.index_map, self.V.dofmap.index_map_bs)
         b = self._diss_b
         with b.localForm() as b_local:
             b_local.set(0.0)
-        for form in self._diss_form:
-            fem_petsc.assemble_vector(b, form)
+        for form, packer in zip(self._diss_form, self._diss_packers):
+            fem_petsc.assemble_vector(b, form, coeffs=packer.pack())
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return b.array_r.copy()
 

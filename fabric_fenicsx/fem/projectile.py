@@ -43,6 +43,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from fabric_fenicsx.fem.contact_kernel import penalty_forces
+
 __all__ = [
     "Projectile",
     "PenaltyContact",
@@ -457,40 +459,19 @@ class PenaltyContact:
             )
         m = mass_all[idx]
         k = self._stiffness(m, dt, idx, n)
-        c = 2.0 * self.damping_ratio * np.sqrt(k * m)
-
-        v_rel = v[idx].copy()
-        v_rel[:, 2] -= state.vz
-        vn = np.einsum("ij,ij->i", v_rel, nrm)
-        pdot = -vn
-        elastic = k * pen
-        # Contact cannot be adhesive: when the dashpot would pull the separating node back
-        # onto the face, the node is released (force 0) instead.
-        fn = np.maximum(elastic + c * pdot, 0.0)
-
-        v_t = v_rel - vn[:, None] * nrm
-        speed_t = np.linalg.norm(v_t, axis=1)
-        coulomb = self.friction * fn
-        # Stick cap: friction never exceeds the force that stops the relative sliding of the
-        # node in one step, so it cannot reverse v_t (explicit, history-free regularisation:
-        # the regularising velocity is mu f_n dt / m).
-        stick = m * speed_t / dt
-        ft = np.minimum(coulomb, stick)
-        t_hat = v_t / np.where(speed_t > 0.0, speed_t, 1.0)[:, None]
-        f_t = -ft[:, None] * t_hat
-
-        f_nodes[idx] = fn[:, None] * nrm + f_t
-        f_projectile = -f_nodes.sum(axis=0)
-
+        # Per node (compiled, contact_kernel.penalty_forces): normal force k p + c pdot with
+        # c = 2 zeta sqrt(k m); contact cannot be adhesive: when the dashpot would pull the
+        # separating node back onto the face, the node is released (force 0) instead. Friction
+        # min(mu f_n, m |v_t| / dt) against the relative sliding v_t: the stick cap never lets
+        # friction reverse v_t in one step (explicit, history-free regularisation: the
+        # regularising velocity is mu f_n dt / m).
+        sums = np.empty(10)
+        penalty_forces(idx, np.ascontiguousarray(pen), np.ascontiguousarray(nrm), v,
+                       np.ascontiguousarray(m), np.ascontiguousarray(k, dtype=float), state.vz,
+                       self.damping_ratio, self.friction, dt, f_nodes, sums)
         info.update(
-            penalty_energy=float(0.5 * np.sum(k * pen * pen)),
-            friction_work=float(dt * np.einsum("ij,ij->", f_t, v_rel)),
-            damping_work=float(dt * np.sum((fn - elastic) * vn)),
-            n_active=int(idx.size),
-            n_released=int(np.count_nonzero(elastic + c * pdot < 0.0)),
-            n_sliding=int(np.count_nonzero((coulomb <= stick) & (ft > 0.0))),
-            max_penetration=float(pen.max()),
-            normal_force=float(fn.sum()),
-            friction_force=float(ft.sum()),
+            penalty_energy=float(sums[0]), friction_work=float(sums[1]), damping_work=float(sums[2]),
+            n_active=int(idx.size), n_released=int(sums[3]), n_sliding=int(sums[4]),
+            max_penetration=float(pen.max()), normal_force=float(sums[5]), friction_force=float(sums[6]),
         )
-        return f_nodes, f_projectile, info
+        return f_nodes, sums[7:10].copy(), info

@@ -285,13 +285,12 @@ class HourglassControl(MembraneTerm):
             self._setup(m)
         n = m.n_cells
         state = self._integrity() if self._integrity is not None else None
-        alpha = np.ones((2, n)) if state is None else _cell_means(self._wq, (state.alpha1, state.alpha2))
-        tension = (np.full((2, n), self.modulus) if self._tension is None
-                   else _cell_means(self._wq, np.maximum(self._tension(), 0.0)))
-        live = m.live.x.array[m._live_dofs]
+        npts = self._wq.size
+        alpha = (np.ones((2, npts)) if state is None else np.stack((state.alpha1, state.alpha2)))
+        tension = np.full((2, npts), self.modulus) if self._tension is None else self._tension()
         self._s = np.empty((n, 2, 2))            # s per cell, yarn and (in-plane, out-of-plane)
-        self._s[:, :, 0] = self.k * alpha.T * live[:, None]
-        self._s[:, :, 1] = self.ratio * tension.T * live[:, None]
+        _hourglass_stiffness(self._wq, alpha, tension, m.live.x.array[m._live_dofs], self.k,
+                             self.ratio, self._s)
 
     def add_cell_forces(self, m, forces: np.ndarray) -> float:
         return _add_hourglass_forces(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3), forces)
@@ -319,6 +318,21 @@ def fluctuation_matrices(X: np.ndarray, directions: np.ndarray, degree: int = 2)
     mean = np.einsum("cq,cqaI->caI", W / W.sum(axis=1, keepdims=True), grad)
     g = np.einsum("cqaI,iI->cqai", grad - mean[:, None], directions)
     return np.einsum("cq,cqai,cqbi->ciab", W, g, g)
+
+
+@njit(cache=True, nogil=True)
+def _hourglass_stiffness(wq, alpha, tension, live, k, ratio, s):
+    """s[c, i] = (k <alpha_i>, ratio <max(T_i, 0)>) x live_c per cell c and yarn i, <.> the
+    cell means with the normalised weights ``wq`` (n_cells, points)."""
+    npc = wq.shape[1]
+    for c in range(wq.shape[0]):
+        for i in range(2):
+            a = t = 0.0
+            for q in range(npc):
+                a += wq[c, q] * alpha[i, c * npc + q]
+                t += wq[c, q] * max(tension[i, c * npc + q], 0.0)
+            s[c, i, 0] = k * a * live[c]
+            s[c, i, 1] = ratio * t * live[c]
 
 
 @njit(cache=True, nogil=True)

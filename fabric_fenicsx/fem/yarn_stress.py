@@ -90,7 +90,7 @@ class YarnStress:
 
     # ------------------------------------------------------------------ surrogate access
     def _clip(self, E: np.ndarray) -> np.ndarray:
-        return np.clip(E, self.E_lo, self.E_hi)
+        return np.minimum(np.maximum(E, self.E_lo), self.E_hi)   # np.clip's overhead is 10 x this
 
     def _relax(self, E1, E2, a1, a2, guess=None):
         """The strains the unit cell is asked at: a compressed yarn whose unit-cell force is
@@ -258,7 +258,9 @@ class YarnStress:
         E1, E2 = self._clip(E1), self._clip(E2)
         a1 = self.alpha1[idx] if self.damage else np.ones(idx.size)
         a2 = self.alpha2[idx] if self.damage else np.ones(idx.size)
-        R1, R2 = self._relax(E1, E2, a1, a2)
+        # the searches start at the last update's roots: the same simple roots to round-off
+        # (Surrogate.zero_force_strain), three times fewer evaluations than from the bracket's end
+        R1, R2 = self._relax(E1, E2, a1, a2, self.E_relaxed[:, idx])
         wrinkled1, wrinkled2 = R1 != E1, R2 != E2
         E1, E2 = R1, R2
         vals, d1, d2 = self.sur.lookup(E1, E2, a1, a2, ("P1", "P2"), derivative=True)

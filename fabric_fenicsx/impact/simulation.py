@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 from mpi4py import MPI
 
+from fabric_fenicsx.fem.contact_kernel import near_nodes, node_extremes
 from fabric_fenicsx.fem.explicit import CentralDifference
 from fabric_fenicsx.fem.membrane import Membrane
 from fabric_fenicsx.fem.mesh import edge_dofs, min_cell_size
@@ -305,15 +306,12 @@ class ImpactSimulation:
         margin = abs(s.vz) * dt + 1e-9
         if not proj.may_touch(self.ledger.z_max, s.z, margin):
             return None, np.zeros(3), zero_info
-        x = self.X + self.cd.u.reshape(-1, 3)
-        r2 = (x[:, 0] - self.axis_xy[0]) ** 2 + (x[:, 1] - self.axis_xy[1]) ** 2
-        near = (self.removal.live_nodes & (r2 < proj.radius ** 2) & (x[:, 2] > s.z)
-                & (x[:, 2] < s.z + proj.length))
-        sel = np.flatnonzero(near)
+        sel, x_sel = near_nodes(self.X, self.cd.u, self.removal.live_nodes, self.axis_xy[0],
+                                self.axis_xy[1], proj.radius, s.z, proj.length)
         if sel.size == 0:
             return None, np.zeros(3), zero_info
         v = self.cd.v.reshape(-1, 3)
-        f_nodes, f_p, info = self.contact.forces(x[sel], v[sel], self.node_mass[sel], dt, s)
+        f_nodes, f_p, info = self.contact.forces(x_sel, v[sel], self.node_mass[sel], dt, s)
         # touching nodes of fabric still attached to a clamped edge (a plug riding on the
         # face does not keep the run from ending)
         info["n_attached"] = int(np.count_nonzero(np.any(f_nodes != 0.0, axis=1)
@@ -335,14 +333,11 @@ class ImpactSimulation:
         mat, cd, removal = self.material, self.cd, self.removal
         delete, erode = removed
         state = mat.state
-        damaged = bool(np.any(state.alpha1 < 1.0) or np.any(state.alpha2 < 1.0)) if self.scene.material.damage else False
-        x_new = self.X[:, 2] + cd.u[2::3]
-        live_z = x_new[removal.live_nodes]
-        r2 = ((self.X[:, 0] + cd.u[0::3] - self.axis_xy[0]) ** 2
-              + (self.X[:, 1] + cd.u[1::3] - self.axis_xy[1]) ** 2)
-        attached = removal.live_nodes & ~removal.free_nodes
-        front = int(np.count_nonzero(attached & (r2 < self.projectile.radius ** 2)
-                                     & (x_new < self.state.z + self.projectile.length)))
+        damaged = bool(state.alpha1.min(initial=1.0) < 1.0 or state.alpha2.min(initial=1.0) < 1.0) \
+            if self.scene.material.damage else False
+        z_max, front, moved = node_extremes(self.X, cd.u, removal.live_nodes, removal.free_nodes,
+                                            self.axis_xy[0], self.axis_xy[1], self.projectile.radius,
+                                            self.state.z + self.projectile.length)
         sums = reduce_named(self.comm, {
             "contact_force": f_p[2], "penalty_energy": info["penalty_energy"],
             "friction_dissipation": -info["friction_work"], "n_contact": info["n_active"],
@@ -356,10 +351,8 @@ class ImpactSimulation:
             raise ImpactError(self._trouble(loop.step, t_n, f"time-step check: {type(err).__name__}: "
                                             f"{err}", trouble.component(err))) from err
         self.clock.dt_check += time.perf_counter() - tw
-        maxima = reduce_named(self.comm, {
-            "z_max": live_z.max() if live_z.size else -math.inf, "modulus": modulus,
-            "attached_displacement": float(np.abs(cd.u.reshape(-1, 3)[attached]).max(initial=0.0))},
-            op=MPI.MAX)
+        maxima = reduce_named(self.comm, {"z_max": z_max, "modulus": modulus,
+                                          "attached_displacement": moved}, op=MPI.MAX)
         return sums, maxima
 
     def _book(self, loop: _Loop, t_n: float, sums: dict, maxima: dict) -> None:

@@ -1,0 +1,194 @@
+"""The compiled parts of an explicit step against the expressions they replace: the yarn
+strains against DOLFINx's evaluation of the UFL expression, the gathered coefficients against
+DOLFINx's packing, the contact force law, the node pass of the end tests and the
+central-difference update against their numpy formulas."""
+import numpy as np
+import pytest
+from dolfinx import fem, mesh
+from dolfinx.cpp.fem import pack_coefficients
+from dolfinx.fem import petsc as fem_petsc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from fabric_fenicsx.fem.contact_kernel import node_extremes
+from fabric_fenicsx.fem.explicit import CentralDifference, LinearYarnMaterial
+from fabric_fenicsx.fem.membrane import Membrane
+from fabric_fenicsx.fem.packing import CoefficientPacker
+from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile, ProjectileState
+from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear
+
+A = 0.05
+
+
+def membrane(cell, angle, degree, distort=0.2, seed=1):
+    kind = {"quadrilateral": mesh.CellType.quadrilateral, "triangle": mesh.CellType.triangle}[cell]
+    msh = mesh.create_rectangle(MPI.COMM_WORLD, [[-A, -A], [A, A]], [6, 5], kind)
+    x = msh.geometry.x
+    inner = (np.abs(x[:, 0]) < A - 1e-12) & (np.abs(x[:, 1]) < A - 1e-12)
+    x[inner, :2] += distort * (2 * A / 6) * np.random.default_rng(seed).uniform(-1, 1, (inner.sum(), 2))
+    m = Membrane(msh, angle=angle, quadrature_degree=degree)
+    rng = np.random.default_rng(seed)
+    m.set_displacement(0.002 * rng.standard_normal(m.n_owned_dofs))
+    return m
+
+
+@pytest.mark.parametrize("cell, degree", [("quadrilateral", 1), ("quadrilateral", 2), ("triangle", 2)])
+@pytest.mark.parametrize("angle", [0.0, 0.7])
+def test_point_strains_equal_the_ufl_expression(cell, degree, angle):
+    m = membrane(cell, angle, degree)
+    E1, E2 = m.yarn_strains()
+    R1, R2 = m.yarn_strains_expression()
+    assert E1.shape == (m.n_points,) and np.ptp(E1) > 1e-3   # a real, non-uniform strain field
+    np.testing.assert_allclose(E1, R1, rtol=1e-13, atol=1e-16)   # round-off of a sum in another order
+    np.testing.assert_allclose(E2, R2, rtol=1e-13, atol=1e-16)
+
+
+@pytest.mark.parametrize("cell, degree", [("quadrilateral", 1), ("triangle", 2)])
+def test_gathered_coefficients_and_force_equal_dolfinx_packing(cell, degree):
+    m = membrane(cell, 0.3, degree)
+    if cell == "quadrilateral":
+        m.add_term(HourglassControl(0.05, 1e5))
+    m.add_term(IsotropicShear(2e3))
+    rng = np.random.default_rng(2)
+    m.set_stress(rng.uniform(0, 1e4, m.n_points), rng.uniform(0, 1e4, m.n_points))
+    f = m.internal_force()
+    assert all(p.gathers for p in m._packers)
+    for form, packer in zip(m._form, m._packers):
+        mine, ref = packer.pack(), pack_coefficients(form)
+        assert mine.keys() == ref.keys()
+        for key in ref:
+            assert np.array_equal(mine[key], ref[key])
+    # the force with DOLFINx packing its coefficients itself is the same, bit for bit
+    b = m._b.duplicate()
+    with b.localForm() as bl:
+        bl.set(0.0)
+    for form in m._form:
+        fem_petsc.assemble_vector(b, form)
+    with b.localForm() as bl:
+        for term in m._per_cell_terms:
+            term.add_cell_forces(m, bl.array_w.reshape(-1, 3))
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    assert np.abs(f).max() > 0 and np.array_equal(f, b.array_r)
+    # after a change of the displacement the gather follows it
+    m.set_displacement(m.u.x.array[:m.n_owned_dofs] * 1.5)
+    for form, packer in zip(m._form, m._packers):
+        ref = pack_coefficients(form)
+        assert all(np.array_equal(packer.pack()[k], ref[k]) for k in ref)
+
+
+def test_packer_falls_back_where_the_values_are_transformed():
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, 2, 2)
+    V = fem.FunctionSpace(msh, ("N1curl", 1))   # edge dofs carry signs: not a plain gather
+    g = fem.Function(V)
+    import ufl
+    form = fem.form(ufl.inner(g, g) * ufl.TestFunction(fem.FunctionSpace(msh, ("DG", 0))) * ufl.dx)
+    packer = CoefficientPacker(form)
+    g.x.array[:] = np.random.default_rng(0).standard_normal(g.x.array.size)
+    ref = pack_coefficients(form)
+    assert all(np.array_equal(packer.pack()[k], ref[k]) for k in ref)
+
+
+def _numpy_contact(contact, x, v, m, dt, state):
+    """The force law of PenaltyContact.forces as numpy expressions (the formulas before it was
+    compiled)."""
+    proj = contact.projectile
+    idx = np.flatnonzero(proj.candidates(x, state.z))
+    gap, nrm = proj.gap_and_normal(x[idx], state.z)
+    inside = gap < 0
+    idx, pen, nrm = idx[inside], -gap[inside], nrm[inside]
+    mm = m[idx]
+    k = contact._stiffness(mm, dt, idx, x.shape[0])
+    c = 2.0 * contact.damping_ratio * np.sqrt(k * mm)
+    v_rel = v[idx].copy()
+    v_rel[:, 2] -= state.vz
+    vn = np.einsum("ij,ij->i", v_rel, nrm)
+    elastic = k * pen
+    fn = np.maximum(elastic - c * vn, 0.0)
+    v_t = v_rel - vn[:, None] * nrm
+    speed = np.linalg.norm(v_t, axis=1)
+    coulomb = contact.friction * fn
+    stick = mm * speed / dt
+    ft = np.minimum(coulomb, stick)
+    f_t = -ft[:, None] * (v_t / np.where(speed > 0, speed, 1.0)[:, None])
+    f = np.zeros_like(x)
+    f[idx] = fn[:, None] * nrm + f_t
+    info = dict(penalty_energy=0.5 * np.sum(k * pen * pen), friction_work=dt * np.einsum("ij,ij->", f_t, v_rel),
+                damping_work=dt * np.sum((fn - elastic) * vn), n_active=idx.size,
+                n_released=np.count_nonzero(elastic - c * vn < 0), n_sliding=np.count_nonzero((coulomb <= stick) & (ft > 0)),
+                max_penetration=pen.max(), normal_force=fn.sum(), friction_force=ft.sum())
+    return f, -f.sum(axis=0), info
+
+
+@pytest.mark.parametrize("friction, fillet", [(0.5, 0.0), (2.0, 2e-3), (0.0, 0.0)])
+def test_contact_kernel_equals_the_numpy_force_law(friction, fillet):
+    rng = np.random.default_rng(3)
+    proj = Projectile(diameter=0.0254, fillet=fillet, friction=friction)
+    contact = PenaltyContact(proj)
+    state = ProjectileState(z=0.0, vz=-50.0, mass=proj.mass)
+    n = 400
+    x = np.column_stack((rng.uniform(-0.015, 0.015, (n, 2)), rng.uniform(-5e-6, 2e-5, n)))
+    v = rng.normal(0, 30, (n, 3))
+    v[:5] = [0.0, 0.0, state.vz]   # no sliding at all
+    m = rng.uniform(1e-6, 3e-6, n)
+    f, fp, info = contact.forces(x, v, m, 1e-7, state)
+    rf, rfp, rinfo = _numpy_contact(contact, x, v, m, 1e-7, state)
+    assert info["n_active"] > 50 and info["n_released"] > 0 and (friction == 0 or info["n_sliding"] > 0)
+    np.testing.assert_allclose(f, rf, rtol=1e-13, atol=1e-9)
+    np.testing.assert_allclose(fp, rfp, rtol=1e-12)
+    for key, value in rinfo.items():
+        assert info[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
+
+
+def test_node_pass_equals_the_numpy_masks():
+    rng = np.random.default_rng(4)
+    n = 500
+    X = np.column_stack((rng.uniform(-0.02, 0.02, (n, 2)), np.zeros(n)))
+    u = rng.normal(0, 2e-3, 3 * n)
+    live, free = rng.random(n) < 0.8, rng.random(n) < 0.2
+    z_max, front, moved = node_extremes(X, u, live, free, 0.001, -0.002, 0.0127, 1e-3)
+    x = X + u.reshape(-1, 3)
+    attached = live & ~free
+    r2 = (x[:, 0] - 0.001) ** 2 + (x[:, 1] + 0.002) ** 2
+    assert z_max == x[live, 2].max()
+    assert front == np.count_nonzero(attached & (r2 < 0.0127 ** 2) & (x[:, 2] < 1e-3)) > 0
+    assert moved == np.abs(u.reshape(-1, 3)[attached]).max()
+    assert node_extremes(X, u, np.zeros(n, bool), free, 0, 0, 0.01, 0.0)[0] == -np.inf
+
+
+def test_central_difference_update_equals_the_numpy_formulas():
+    """Two steps of a damped, loaded membrane: u, v and every energy against the scheme's
+    formulas written with numpy (module docstring of fabric_fenicsx.fem.explicit)."""
+    m = membrane("quadrilateral", 0.2, 2, distort=0.1)
+    u0 = m.u.x.array[:m.n_owned_dofs].copy()
+    cd = CentralDifference(m, LinearYarnMaterial(1e5, 8e4), 0.2, np.array([0, 1, 2]), damping=1e-6)
+    rng = np.random.default_rng(5)
+    f_ext = rng.normal(0, 1e-3, m.n_owned_dofs)
+    dts = (2e-6, 1.5e-6, 1e-6)
+    u, v, f_prev, works = u0.copy(), np.zeros_like(u0), np.zeros_like(u0), np.zeros(4)
+    du, f_ext_prev, f_damp_prev, dt_prev = np.zeros_like(u0), np.zeros_like(u0), np.zeros_like(u0), 0.0
+    inv = np.where(cd.free, 1.0 / cd.mass, 0.0)
+    for dt in dts:
+        m.set_displacement(u)
+        E1, E2 = m.yarn_strains()
+        P1, P2 = LinearYarnMaterial(1e5, 8e4).constitutive_update(E1, E2, None)[:2]
+        m.set_stress(P1, P2)
+        f_int = m.internal_force()
+        f_damp = (1e-6 / dt_prev) * (f_int - f_prev) if dt_prev else np.zeros_like(u)
+        acc = (f_ext - f_int - f_damp) * inv
+        works += [0.5 * np.dot(f_int + f_prev, du), 0.5 * np.dot(f_ext + f_ext_prev, du),
+                  0.5 * np.dot(f_damp + f_damp_prev, du), 0.0]
+        v_full = v + 0.5 * dt_prev * acc
+        kinetic = 0.5 * np.dot(cd.mass * v_full, v_full)
+        v = v + 0.5 * (dt_prev + dt) * acc
+        du = dt * v
+        u = u + du
+        f_prev, f_ext_prev, f_damp_prev, dt_prev = f_int, f_ext, f_damp, dt
+        m.set_displacement(cd.u.copy())   # the integrator's own state
+        record = cd.step(dt, f_ext)
+        assert record.kinetic == pytest.approx(kinetic, rel=1e-12, abs=1e-30)
+        assert record.internal == pytest.approx(works[0], rel=1e-12, abs=1e-30)
+        assert record.external == pytest.approx(works[1], rel=1e-12, abs=1e-30)
+        assert record.damping == pytest.approx(works[2], rel=1e-12, abs=1e-30)
+        np.testing.assert_allclose(cd.u, u, rtol=1e-13, atol=1e-18)
+        np.testing.assert_allclose(cd.v, v, rtol=1e-12, atol=1e-15)
+    assert works[0] != 0 and works[2] != 0
