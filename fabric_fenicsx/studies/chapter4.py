@@ -136,7 +136,7 @@ def row(summary: dict) -> dict:
             "perforated": summary.get("perforated"), "end_reason": summary.get("end_reason"),
             "onset_mm": mm(summary.get("damage_onset_deflection")),
             "first_removal_mm": mm(summary.get("first_removal_deflection")),
-            "peak_mm": mm(summary.get("peak_deflection")),
+            "peak_mm": mm(summary.get("max_deflection")),
             "onset_radius_mm": mm(summary.get("damage_onset_radius")),
             "damage_extent_mm": mm(summary.get("damage_extent_radius")),
             "damaged_cells": summary.get("damaged_cells"),

@@ -281,7 +281,7 @@ def run_one(case: str, h_centre: float, dt_safety: float, runs_dir: Path, rerun:
         rec.error = done["outcome"]["error"]
         return rec
     s = done["outcome"]
-    defl = s["max_deflection"]
+    defl = s.get("damage_onset_deflection")
     rec.values.update(
         residual_velocity=s["residual_velocity"], absorbed_energy=s["absorbed_energy"],
         eroded_cells=s.get("eroded_cells"),

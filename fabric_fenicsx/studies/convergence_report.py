@@ -244,7 +244,7 @@ def ladder_section(title: str, knob: str, analyses: dict, out: Path, doc: Path) 
                 "err w_max vs finest", "err w_max vs Richardson", "energy error", "finished (UTC)"]
         L += _md_table(head, rows)
         kind = next((r.values.get("deflection_kind") for r in ok), "")
-        L += ["", f"w_max: central deflection {kind}" + (" (summary `max_deflection`)" if kind == "at damage onset"
+        L += ["", f"w_max: central deflection {kind}" + (" (summary `damage_onset_deflection`)" if kind == "at damage onset"
                                                         else " of the `central_deflection` column of history.csv"
                                                         if kind else "") + ".", ""]
         orows = []

@@ -198,7 +198,7 @@ def _json_default(x):
 def _summary_digest(s: dict) -> dict:
     """The summary's numbers the study reports."""
     keys = ("v0", "residual_velocity", "perforated", "absorbed_energy", "max_deflection",
-            "damage_onset_time", "energy_error", "end_reason", "end_time", "wall_time_s",
+            "damage_onset_time", "damage_onset_deflection", "energy_error", "end_reason", "end_time", "wall_time_s",
             "build_time_s", "n_cells", "n_steps", "dt", "dt_initial", "deleted_cells", "eroded_cells")
     out = {k: s.get(k) for k in keys}
     sur = s.get("surrogate", {})

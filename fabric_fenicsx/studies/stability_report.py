@@ -206,7 +206,7 @@ def _facts(rec: dict) -> str:
                     f"(dt lowered {s['n_dt_changes']} time(s))")
         if s.get("damage_onset_time") is not None:
             bits.append(f"damage starts at {s['damage_onset_time'] * 1e3:.3f} ms (central deflection "
-                        f"{s['max_deflection'] * 1e3:.2f} mm)")
+                        f"{s['damage_onset_deflection'] * 1e3:.2f} mm)")
         elif "material.damage=false" in rec["settings"]["overrides"]:
             bits.append("damage off")
         else:
