@@ -371,7 +371,7 @@ def write_report(doc: Path, out: Path, records: list[dict], cases, command: str,
                    table_rows(records)),
         "",
         f"Total over the {len(records)} cases: {total_wall:.0f} s wall, {total_cpu:.0f} s CPU "
-        "(as recorded when each case ran; another study shared the two cores). They include "
+        "(as recorded when each case ran, whatever else the machine ran then). They include "
         "the table tiles a case had to solve (the fabric variants: each case's paragraph gives "
         "the unit cells solved and their time); tiles already in the cache (~/.cache/fabric_fenicsx) "
         "are only read from disk (under a second in benchmarks/bench_impact.py).",
