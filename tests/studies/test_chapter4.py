@@ -111,7 +111,7 @@ def test_concurrent_studies_share_the_processes_they_are_given(tmp_path, monkeyp
 
 
 def _summary(absorbed, peak=0.03, reach=0.02):
-    return {"residual_velocity": 10.0, "absorbed_energy": absorbed, "peak_deflection": peak,
+    return {"residual_velocity": 10.0, "absorbed_energy": absorbed, "max_deflection": peak,
             "damage_extent_radius": reach}
 
 

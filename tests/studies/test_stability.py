@@ -197,14 +197,16 @@ def test_contact_cases_complete_with_a_small_energy_error(contact_runs, name):
 def test_friction_holds_the_fabric_under_the_face(contact_runs):
     """Frictionless contact dissipates nothing by friction and lets the fabric slide under the
     flat face as the cone pulls it in; friction 2 dissipates energy, holds the nodes under the
-    face (measured: mean in-plane displacement 4.2e-5 against 8.1e-5 m) and slows the projectile
-    a little more (56.733 against 56.740 m/s at 0.15 ms)."""
+    face (measured: mean in-plane displacement 4.0e-5 against 8.1e-5 m). Before damage the
+    coefficient hardly changes the projectile's speed (56.7139 against 56.7133 m/s at 0.15 ms
+    with the reduced element; the fully integrated one gave 56.733 against 56.740 m/s, the
+    other way round): within 1e-4 of the impact velocity."""
     run0, run2 = contact_runs["friction-0"], contact_runs["friction-2"]
     e0, e2 = run0.summary["energies"], run2.summary["energies"]
     assert e0["friction_dissipation_estimate"] == 0.0
     assert e2["friction_dissipation_estimate"] > 0.02 * e2["contact_dissipation"]
     assert sliding_under_the_face(run2.sim) < 0.7 * sliding_under_the_face(run0.sim)
-    assert run2.summary["residual_velocity"] < run0.summary["residual_velocity"]
+    assert abs(run2.summary["residual_velocity"] - run0.summary["residual_velocity"]) < 1e-4 * 57.3
 
 
 @pytest.mark.parametrize("name, angle", [("friction-0", 90.0), ("angle-30", 30.0)])
@@ -249,23 +251,23 @@ def test_1000_m_per_s_plug_ends_as_a_perforation(v1000):
 
 
 def test_strains_beyond_the_table_are_counted_and_stay_finite(tmp_path):
-    rec = run_case(by_name("beyond-table"), tmp_path / "bt",
-                   base_overrides=SHORT[:-1] + ("run.t_end=0.0001",))
+    """Damage off at 300 m/s: by 0.3 ms intact yarns pass the table's end (with the reduced
+    element not yet at 0.15 ms), are counted, and the run stays finite and balanced."""
+    rec = run_case(by_name("beyond-table"), tmp_path / "bt", base_overrides=SHORT[:-1] + ("run.t_end=0.0003",))
     assert_sound(rec)
-    assert rec["status"] == "completed" and rec["summary"]["points_beyond_table"] > 0
+    assert rec["status"] == "completed" and rec["summary"]["points_beyond_table"] > 0   # measured 109905
     assert rec["assessment"]["verdict"] == "ok"
-    assert rec["summary"]["energy_error"] < 0.002                    # measured 3.9e-4
+    assert rec["summary"]["energy_error"] < 0.002                    # measured 5.4e-4
 
 
 def test_large_damaged_region_removes_cells_within_the_energy_limit(tmp_path):
-    """docs/stability.md records an energy error of 0.83 % for this case (default table; 0.59 %
-    measured on this short run with the coarse table): the balance must stay within 1 %, not the
-    5 % guard."""
-    rec = run_case(by_name("large-damage"), tmp_path / "ld",
-                   base_overrides=SHORT[:-1] + ("run.t_end=0.0001",))
+    """docs/stability.md records an energy error of 0.83 % for this case (default table, 0.6 ms;
+    0.82 % measured on this 0.15 ms run with the coarse table): the balance must stay within 1 %,
+    not the 5 % guard."""
+    rec = run_case(by_name("large-damage"), tmp_path / "ld", base_overrides=SHORT)
     assert_sound(rec)
     s = rec["summary"]
-    assert s["eroded_cells"] > 20                                     # measured 27
+    assert s["eroded_cells"] > 20                                     # measured 36
     assert s["energy_error"] < 0.01
 
 
