@@ -92,28 +92,3 @@ def penalty_forces(idx, pen, nrm, v, m, k, vz, damping_ratio, friction, dt, f_no
     sums[3], sums[4], sums[5], sums[6] = released, sliding, fn_sum, ft_sum
     sums[7], sums[8], sums[9] = fpx, fpy, fpz
 
-
-@njit(cache=True, nogil=True)
-def node_extremes(X, u, live, free, ax, ay, radius, z_front):
-    """One pass over this rank's nodes for the end and blow-up tests of an impact step:
-    (highest z of a live node, -inf if none; live nodes still attached to a clamped edge
-    (not ``free``) inside the projectile's radius and below ``z_front``, the height of its back
-    face; largest |u_i| of those attached nodes)."""
-    z_max = -math.inf
-    front = 0
-    moved = 0.0
-    r2max = radius * radius
-    for a in range(X.shape[0]):
-        if not live[a]:
-            continue
-        z = X[a, 2] + u[3 * a + 2]
-        z_max = max(z_max, z)
-        if free[a]:
-            continue
-        dx = X[a, 0] + u[3 * a] - ax
-        dy = X[a, 1] + u[3 * a + 1] - ay
-        if dx * dx + dy * dy < r2max and z < z_front:
-            front += 1
-        for c in range(3):
-            moved = max(moved, abs(u[3 * a + c]))
-    return z_max, front, moved

@@ -36,14 +36,14 @@ class PointStrains:
         self.g = np.ascontiguousarray(g.reshape(-1, 2, nodes.shape[1]))
         self.point_nodes = np.ascontiguousarray(np.repeat(nodes, points.shape[0], axis=0), dtype=np.int64)
         self.L = np.ascontiguousarray(np.concatenate((L, np.zeros((2, 1))), axis=1))  # 3D
-        n = self.g.shape[0]
-        self.E1, self.E2 = np.empty(n), np.empty(n)
 
     def __call__(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(E1, E2) for the local displacement dofs ``u`` (owned and ghost, 3 per node),
         fresh arrays."""
-        _yarn_strains(self.point_nodes, self.g, self.L, u.reshape(-1, 3), self.E1, self.E2)
-        return self.E1.copy(), self.E2.copy()
+        n = self.point_nodes.shape[0]
+        E1, E2 = np.empty(n), np.empty(n)
+        _yarn_strains(self.point_nodes, self.g, self.L, u.reshape(-1, 3), E1, E2)
+        return E1, E2
 
 
 @njit(cache=True, nogil=True)

@@ -12,9 +12,12 @@ live neighbours. Pieces cut loose from every clamped edge (a plug) are tracked a
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
+from numba import njit
 from petsc4py import PETSc
 
 __all__ = ["CellRemoval"]
@@ -52,6 +55,15 @@ class CellRemoval:
         delete = np.flatnonzero(dead & self.live_cells)
         erode = np.flatnonzero(over & ~dead & self.live_cells)
         return delete, erode
+
+    def node_extremes(self, X: np.ndarray, u: np.ndarray, axis_xy, radius: float,
+                      z_front: float) -> tuple[float, int, float]:
+        """One pass over this rank's nodes (reference positions ``X``, displacements ``u``) for
+        the end and blow-up tests of a step: the highest z of a live node (-inf if none), the
+        attached live nodes inside ``radius`` of ``axis_xy`` below ``z_front``, and the largest
+        |u_i| of the attached nodes (:func:`_node_extremes`)."""
+        return _node_extremes(X, u, self.live_nodes, self.free_nodes, axis_xy[0], axis_xy[1],
+                              radius, z_front)
 
     def remove(self, delete: np.ndarray, erode: np.ndarray) -> None:
         """Take the cells out of the material and of every weak-form term. Local: a rank calls
@@ -110,3 +122,29 @@ class CellRemoval:
             if new == 0:
                 break
         self.free_nodes = self.live_nodes & ~attached[:self.n_nodes]
+
+
+@njit(cache=True, nogil=True)
+def _node_extremes(X, u, live, free, ax, ay, radius, z_front):
+    """One pass over this rank's nodes for the end and blow-up tests of an impact step:
+    (highest z of a live node, -inf if none; live nodes still attached to a clamped edge
+    (not ``free``) inside the projectile's radius and below ``z_front``, the height of its back
+    face; largest |u_i| of those attached nodes)."""
+    z_max = -math.inf
+    front = 0
+    moved = 0.0
+    r2max = radius * radius
+    for a in range(X.shape[0]):
+        if not live[a]:
+            continue
+        z = X[a, 2] + u[3 * a + 2]
+        z_max = max(z_max, z)
+        if free[a]:
+            continue
+        dx = X[a, 0] + u[3 * a] - ax
+        dy = X[a, 1] + u[3 * a + 1] - ay
+        if dx * dx + dy * dy < r2max and z < z_front:
+            front += 1
+        for c in range(3):
+            moved = max(moved, abs(u[3 * a + c]))
+    return z_max, front, moved

@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 from mpi4py import MPI
 
-from fabric_fenicsx.fem.contact_kernel import near_nodes, node_extremes
+from fabric_fenicsx.fem.contact_kernel import near_nodes
 from fabric_fenicsx.fem.explicit import CentralDifference
 from fabric_fenicsx.fem.membrane import Membrane
 from fabric_fenicsx.fem.mesh import edge_dofs, min_cell_size
@@ -335,9 +335,8 @@ class ImpactSimulation:
         state = mat.state
         damaged = bool(state.alpha1.min(initial=1.0) < 1.0 or state.alpha2.min(initial=1.0) < 1.0) \
             if self.scene.material.damage else False
-        z_max, front, moved = node_extremes(self.X, cd.u, removal.live_nodes, removal.free_nodes,
-                                            self.axis_xy[0], self.axis_xy[1], self.projectile.radius,
-                                            self.state.z + self.projectile.length)
+        z_max, front, moved = removal.node_extremes(self.X, cd.u, self.axis_xy, self.projectile.radius,
+                                                    self.state.z + self.projectile.length)
         sums = reduce_named(self.comm, {
             "contact_force": f_p[2], "penalty_energy": info["penalty_energy"],
             "friction_dissipation": -info["friction_work"], "n_contact": info["n_active"],

@@ -25,8 +25,9 @@ What counts as stored (:func:`incomplete`): a run's folder is taken as done only
   its pictures) is not recorded and runs again.
 
 Anything else (a missing or empty file, a record cut short, a record older than this rule) is
-incomplete: the run runs again. Records are written atomically (:func:`write_atomic`: a
-temporary file in the same folder, then ``os.replace``), so none is ever left empty or cut.
+incomplete: the run runs again. Records are written atomically
+(:func:`fabric_fenicsx.atomic.write_atomic`: a temporary file in the same folder, then
+``os.replace``), so none is ever left empty or cut.
 
 A run's outcome that cannot be recorded, and a run that failed because its disk is full, stop
 the pool: the running processes are ended (SIGTERM; they run again when the study is resumed)
@@ -50,6 +51,8 @@ import uuid
 import zipfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+
+from fabric_fenicsx.atomic import write_atomic
 
 __all__ = ["Run", "run_all", "PoolStopped", "Progress", "duration", "incomplete", "expected_files", "surroundings",
            "write_atomic", "DISK_ERRNOS"]
@@ -92,23 +95,6 @@ def _settings(run: Run) -> dict:
     from fabric_fenicsx.impact.scene import load_scene
 
     return load_scene(run.scene, list(run.overrides)).to_dict()
-
-
-def write_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` whole or not at all: into a temporary file beside it, flushed
-    to disk, then renamed over it (``os.replace``). On an error (a full disk) the temporary
-    file is removed, ``path`` keeps what it held, and the OSError is raised."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def expected_files(settings: dict | None) -> list[str]:

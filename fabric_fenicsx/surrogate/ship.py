@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fabric_fenicsx.atomic import write_atomic
 from fabric_fenicsx.surrogate.tiles import load_tile, save_tile
 
 SHIPPED_DIR = Path(__file__).resolve().with_name("shipped")
@@ -192,10 +193,7 @@ def ship(root: str | Path | None = None, add_from=(), workers: int | None = None
     for old in root.glob("surrogate-*"):
         if old.is_dir() and old.name not in keep:
             shutil.rmtree(old)
-    text = json.dumps(manifest, indent=1) + "\n"
-    tmp = root / f".{MANIFEST}.{uuid.uuid4().hex[:8]}.tmp"
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, root / MANIFEST)
+    write_atomic(root / MANIFEST, json.dumps(manifest, indent=1) + "\n")
     return report
 
 

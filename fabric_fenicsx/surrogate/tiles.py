@@ -33,15 +33,14 @@ import multiprocessing
 import os
 import sys
 import tempfile
-import socket
-import threading
 import time
-import uuid
 import warnings
 import zlib
 from pathlib import Path
 
 import numpy as np
+
+from fabric_fenicsx.atomic import temporary_name, write_atomic  # noqa: F401 (temporary_name: tests)
 
 QUANTITIES = ("P1", "P2", "mu1", "mu2", "V", "Psi")
 """Tabulated per node: P_i (N/m, Eq. 2-31), maximum stretches mu_i, contact force V (N) and
@@ -96,33 +95,16 @@ def load_tile(path: Path, key: str, shape: tuple, tile: str) -> np.ndarray | Non
     return values if ok else None
 
 
-def temporary_name(path: Path) -> Path:
-    """A name for writing ``path`` that no other writer uses: in the same folder (so that
-    :func:`os.replace` is a rename), hidden, ending in ``.tmp`` (not a tile's name), and unique
-    across hosts, processes and threads sharing the folder."""
-    host = "".join(c for c in socket.gethostname() if c.isalnum() or c in "-_")[:32] or "host"
-    tag = f"{host}-{os.getpid()}-{threading.get_ident()}-{uuid.uuid4().hex[:12]}"
-    return path.with_name(f".{path.name}.{tag}.tmp")
-
-
 def save_tile(path: Path, key: str, values: np.ndarray, tile: str, compress: bool = False) -> None:
-    """Write tile ``tile`` atomically: the whole file under a :func:`temporary_name`, flushed
-    to the disk, then renamed over ``path`` (another writer of the same tile at the same time
-    writes its own file; the last rename wins, and each is complete). ``compress``: zip-deflated
+    """Write tile ``tile`` atomically (:func:`fabric_fenicsx.atomic.write_atomic`): the whole
+    file under a name of its own, flushed to the disk, then renamed over ``path`` (another
+    writer of the same tile at the same time writes its own file; the last rename wins, and
+    each is complete). ``compress``: zip-deflated
     (smaller, slower to read). OSError if it cannot be written (no partial file is left)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temporary_name(path)
     save = np.savez_compressed if compress else np.savez
-    try:
-        with open(tmp, "xb") as f:
-            save(f, values=values, key=np.array(key), tile=np.array(tile),
-                 checksum=np.array(_checksum(values, key, tile)))
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    write_atomic(path, lambda f: save(f, values=values, key=np.array(key), tile=np.array(tile),
+                                      checksum=np.array(_checksum(values, key, tile))))
 
 
 def cache_problem(folder: Path) -> str | None:

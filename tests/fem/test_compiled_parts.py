@@ -10,7 +10,7 @@ from dolfinx.fem import petsc as fem_petsc
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fabric_fenicsx.fem.contact_kernel import node_extremes
+from fabric_fenicsx.impact.removal import _node_extremes as node_extremes
 from fabric_fenicsx.fem.explicit import CentralDifference, LinearYarnMaterial
 from fabric_fenicsx.fem.membrane import Membrane
 from fabric_fenicsx.fem.packing import CoefficientPacker
