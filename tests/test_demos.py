@@ -169,6 +169,26 @@ def check_smith(out, stdout):
         _png(out / name)
 
 
-CHECKS = {"demo_weak_form": check_weak_form, "demo_explicit_loop": check_explicit_loop,
+def check_scatter(out, stdout):
+    """The segments' median critical strain is the thesis's (within 3 sampling sd); a cell of
+    size h touches on average h / s + 1 segments of length s along each yarn and takes the
+    weakest, so its mean is the segments' mean x (h / s + 1)^(-1/m) (weakest link of a Weibull
+    variable, m = 11.7) within 3 %, and larger cells scatter less."""
+    import re
+    rows = _csv(out / "scatter.csv")
+    median = float(re.search(r"median segment strain ([0-9.]+)", stdout).group(1))
+    seg = rows[0]
+    n, mean0, sd0 = int(seg["cells"]), float(seg["mean_strain"]), float(seg["sd_strain"])
+    assert median == pytest.approx(0.025, abs=3 * 1.2533 * sd0 / n ** 0.5)
+    s = float(seg["cell_mm"])
+    for r in rows[1:]:
+        k = float(r["cell_mm"]) / s + 1.0
+        assert float(r["mean_strain"]) == pytest.approx(mean0 * k ** (-1 / 11.7), rel=0.03)
+    sds = [float(r["sd_strain"]) for r in rows[1:]]
+    assert sds == sorted(sds, reverse=True)
+    _png(out / "scatter_field.png")
+
+
+CHECKS = {"demo_scatter": check_scatter, "demo_weak_form": check_weak_form, "demo_explicit_loop": check_explicit_loop,
           "demo_impact": check_impact, "demo_static": check_static, "demo_fibril": check_fibril,
           "demo_smith": check_smith}

@@ -30,13 +30,17 @@ from pathlib import Path
 from fabric_fenicsx.cli import _perturbed
 
 PROG = "fabric-fenicsx ensemble"
-COLUMNS = ("k", "velocity", "residual_velocity", "absorbed_energy", "viscous_dissipation", "viscous_share",
+COLUMNS = ("k", "seed", "velocity", "residual_velocity", "absorbed_energy", "viscous_dissipation", "viscous_share",
            "damage_onset_deflection", "damage_onset_radius", "removed_cells", "end_reason", "wall_time_s", "error")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     _perturbed.add_arguments(parser, "ensemble", "every member")
     parser.add_argument("-n", "--members", type=int, default=8, help="number of members (default 8)")
+    parser.add_argument("--seeds", type=int, default=None, metavar="FIRST",
+                        help="members are fabrics of the scene's strength scatter (material.scatter): "
+                             "seeds FIRST, FIRST+1, ... at the scene's velocity, instead of the velocity "
+                             "changed by k x --perturbation")
     parser.add_argument("--jobs", type=int, default=None,
                         help="members run at the same time (default: the cores, or with --scheduler the "
                              "cluster's worker threads; at most the members)")
@@ -60,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
         problems.append(f"--members must be at least 2, got {args.members}")
     if _perturbed.perturbation_problem(p):
         problems.append(_perturbed.perturbation_problem(p))
+    if args.seeds is not None and args.seeds < 0:
+        problems.append(f"--seeds must be a seed >= 0, got {args.seeds}")
     if args.jobs is not None and args.jobs < 1:
         problems.append(f"--jobs must be at least 1, got {args.jobs}")
     if scheduler_problem(args.scheduler):
@@ -69,6 +75,9 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         scene = load_scene(args.scene, args.overrides)
+        if args.seeds is not None and scene.material.scatter == "none":
+            raise InputError("--seeds needs a strength scatter (material.scatter = fibrils or weibull): "
+                             "with scatter none every seed is the same fabric")
         out = Path(args.out or Path("out") / f"ensemble-{scene.name}")
         check_output_dir(str(out))
     except InputError as err:
@@ -113,11 +122,14 @@ def _members(args: argparse.Namespace, scene, out: Path, p: float, executor) -> 
 
     if not args.quiet:
         where = f", on {executor.description}" if executor.remote else ""
-        print(f"{PROG}: {args.members} members of {scene.name}, {jobs} at a time, into {out}{where}", flush=True)
+        what = ("impact velocity x (1 + k perturbation)" if args.seeds is None
+                else f"scatter seeds {args.seeds}..{args.seeds + args.members - 1}")
+        print(f"{PROG}: {args.members} members of {scene.name} ({what}), {jobs} at a time, into "
+              f"{out}{where}", flush=True)
     progress = None if args.quiet else Progress("ensemble", "members", say=lambda line: print(line, flush=True))
     rows = ensemble.run_members(args.scene, args.overrides, scene.projectile.velocity, args.members, out,
                                 jobs=jobs, perturbation=p, on_member=on_member, executor=executor,
-                                progress=progress)
+                                progress=progress, first_seed=args.seeds)
     ok = [r for r in rows if "error" not in r]
     rep = ensemble.summarise(ok, p)
     rep.update(scene=str(args.scene), overrides=list(args.overrides), failed=[r for r in rows if "error" in r])

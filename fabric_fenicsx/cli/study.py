@@ -2,7 +2,7 @@
 the thesis's chapter 4 as studies (:mod:`fabric_fenicsx.studies.chapter4`).
 
 NAME: table4, table5, table6, friction, fillet, v50 or chapter4 (all of them, and the validation
-report). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time
+report), or strip (the strength scatter's strip test, :mod:`fabric_fenicsx.cli.strip`). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time
 (the four scenes' ballistic limits are bisected side by side, sharing them), each into
 OUT/runs/<run>; a run stored with the same settings and model version is reused, so
 an interrupted study resumes. ``--set`` applies to every run. Writes OUT/NAME.md and
@@ -50,7 +50,7 @@ def _say(line: str, stream=None) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from fabric_fenicsx.studies.chapter4 import STUDIES
 
-    parser.add_argument("name", metavar="NAME", help=f"the study: {', '.join(STUDIES)}")
+    parser.add_argument("name", metavar="NAME", help=f"the study: {', '.join(STUDIES)}, strip")
     parser.add_argument("--out", default=None, help="output folder (default out/study-NAME)")
     parser.add_argument("--jobs", type=int, default=None,
                         help="runs at the same time (default: the cores; with --scheduler, the cluster's worker threads)")
@@ -62,6 +62,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tol", type=float, default=0.5, help="v50: width of the final bracket (m/s, default 0.5)")
     parser.add_argument("--doc", default="docs/validation.md", help="chapter4: the report to write")
     parser.add_argument("--quiet", action="store_true", help="no line per run and no progress lines")
+    parser.add_argument("--seeds", type=int, default=100, help="strip: seeds of the scatter per mesh (default 100)")
+    parser.add_argument("--scatter", default="weibull", help="strip: the scatter model (weibull or fibrils)")
+    parser.add_argument("--sizes", default="0.002,0.001", help="strip: cell sizes in m (default 0.002,0.001)")
+    parser.add_argument("--families", default="aligned,free", help="strip: mesh families (default aligned,free)")
+    parser.add_argument("--shear-modulus", type=float, default=0.0,
+                        help="strip: isotropic in-plane shear stiffness G (N/m, default 0: the thesis's membrane)")
     from fabric_fenicsx.cli._guarded import add_scheduler_argument
 
     add_scheduler_argument(parser, "runs")
@@ -98,6 +104,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: the runs are processes of their own (--jobs); run it without mpirun", file=sys.stderr)
         return 2
     args.out = args.out or str(Path("out") / f"study-{args.name}")
+    if args.name == "strip":
+        from fabric_fenicsx.cli import strip
+
+        return strip.run(args)
     problem = _check(args)
     if problem:
         print(f"{PROG}: {problem}", file=sys.stderr)

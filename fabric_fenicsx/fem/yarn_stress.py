@@ -57,10 +57,14 @@ class YarnStress:
     (damage off only; with damage on such a yarn is broken). ``modulus_bounded``: point
     evaluations of :meth:`wave_modulus` whose tangent exceeded the bound and was cut to it.
     straight_modulus: the straight intact yarn's dP/dlambda (N/m), default from the fabric.
+    laws: None (the fabric's damage law at every point) or (mu_crit, scale), each (n, 2): every
+    point's own critical stretch and softening scale per yarn, a strength scatter's field
+    (:func:`fabric_fenicsx.material.scatter.cell_laws`); the surrogate must have been built with
+    its ``damage_range``.
     """
 
     def __init__(self, surrogate, weights: np.ndarray, damage: bool, beta: float = 0.0,
-                 straight_modulus: float | None = None):
+                 straight_modulus: float | None = None, laws=None):
         self.sur = surrogate
         self.k_straight = float(straight_yarn_modulus(surrogate.fabric) if straight_modulus is None
                                 else straight_modulus)
@@ -87,6 +91,13 @@ class YarnStress:
         self.slack_tension = 0
         self.relax_stats = RelaxStats()
         self.E_lo, self.E_hi = surrogate.E_table
+        self.mu_crit = self.scale = None
+        if laws is not None:
+            mu_crit, scale = (np.asarray(x, float) for x in laws)
+            if mu_crit.shape != (n, 2) or scale.shape != (n, 2):
+                raise ValueError(f"laws must be two arrays of shape ({n}, 2), got {mu_crit.shape} "
+                                 f"and {scale.shape}")
+            self.mu_crit, self.scale = mu_crit.T.copy(), scale.T.copy()   # (2, n): rows per yarn
 
     # ------------------------------------------------------------------ surrogate access
     def _clip(self, E: np.ndarray) -> np.ndarray:
@@ -161,8 +172,11 @@ class YarnStress:
         """The fields an impact run writes (:data:`~fabric_fenicsx.material.contract.POINT_FIELDS`)
         at every owned point after the last :meth:`update`."""
         sdv1 = ((self.alpha1 > 0) | (self.alpha2 > 0)).astype(float)
-        return {"P1": self.P_el[0] + self.P_v[0], "P2": self.P_el[1] + self.P_v[1], "E1": self.E1,
-                "E2": self.E2, "SDV1": sdv1, "SDV2": self.alpha1, "SDV3": self.alpha2}
+        fields = {"P1": self.P_el[0] + self.P_v[0], "P2": self.P_el[1] + self.P_v[1], "E1": self.E1,
+                  "E2": self.E2, "SDV1": sdv1, "SDV2": self.alpha1, "SDV3": self.alpha2}
+        if self.mu_crit is not None:
+            fields.update(mu_crit1=self.mu_crit[0], mu_crit2=self.mu_crit[1])
+        return fields
 
     def energies(self) -> dict[str, float]:
         """This rank's accumulated energies (J): viscous work, damage dissipation, energy of
@@ -192,7 +206,9 @@ class YarnStress:
         r1, r2 = self._relax(e1, e2, a1h[sel], a2h[sel], self.E_relaxed[:, sel])
         self.E_relaxed[0, sel], self.E_relaxed[1, sel] = r1, r2
         if self.damage:
-            p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel])
+            laws = ({} if self.mu_crit is None else
+                    {"critical_stretch": self.mu_crit[:, sel], "softening_scale": self.scale[:, sel]})
+            p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
             a1, a2, changed = np.empty(n), np.empty(n), np.empty(b1.size, np.int64)
             changed = changed[:yarn_stress_kernel.new_damage(a1h, a2h, self.live, b1, b2, a1, a2,
                                                              changed)]

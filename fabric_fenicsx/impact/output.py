@@ -41,7 +41,7 @@ __all__ = ["ImpactOutput", "XdmfSeries", "RunFrames", "read_run", "start_run", "
            "OWNED_FILES", "NODAL_FIELDS", "CELL_FIELDS"]
 
 NODAL_FIELDS = ("displacement", "velocity")
-CELL_FIELDS = ("P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3")
+CELL_FIELDS = ("P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3", "mu_crit1", "mu_crit2")
 XDMF_NAME = "impact.xdmf"
 DATA_NAME = "impact.bin"
 H5_NAME = "impact.h5"  # written by earlier versions: removed like the others
@@ -67,11 +67,12 @@ def cell_average(values: np.ndarray, weights: np.ndarray, n_points_per_cell: int
 
 def output_cell_fields(point_fields: dict, names, weights: np.ndarray, n_points_per_cell: int,
                        live_cells: np.ndarray) -> dict[str, np.ndarray]:
-    """Cell averages of the named point fields; in a removed cell SDV1 = 0 and the others NaN."""
+    """Cell averages of the named point fields; in a removed cell SDV1 = 0 and the state's fields
+    NaN (the strength scatter's mu_crit1, mu_crit2, a property of the fabric, stay)."""
     out = {}
     for name in names:
         avg = cell_average(point_fields[name], weights, n_points_per_cell)
-        out[name] = np.where(live_cells, avg, 0.0 if name == "SDV1" else np.nan)
+        out[name] = avg if name.startswith("mu_crit") else np.where(live_cells, avg, 0.0 if name == "SDV1" else np.nan)
     return out
 
 
@@ -374,7 +375,7 @@ class ImpactOutput:
         X = m.V.tabulate_dof_coordinates()
         quads = X[dofs]  # (n_cells, 4, 3) reference corners in perimeter order
         values = {k: cell_average(point_fields[k], m.quadrature_weights_detJ, m.n_points_per_cell)
-                  for k in ("SDV1", "SDV2", "SDV3")}
+                  for k in ("SDV1", "SDV2", "SDV3", "mu_crit1") if k in point_fields}
         values["SDV1"] = np.where(live_cells, values["SDV1"], 0.0)
         gathered = self.comm.gather((quads, live_cells, values), root=0)
         if not self.rank0:
@@ -408,7 +409,7 @@ class ImpactOutput:
     def _damage_map(self, gathered, summary: dict) -> None:
         quads = np.concatenate([g[0] for g in gathered])
         live = np.concatenate([g[1] for g in gathered])
-        values = {k: np.concatenate([g[2][k] for g in gathered]) for k in ("SDV1", "SDV2", "SDV3")}
+        values = {k: np.concatenate([g[2][k] for g in gathered]) for k in gathered[0][2]}
         # the same final state as numbers, for pictures of several runs (fabric-fenicsx study)
         np.savez_compressed(self.out_dir / "damage.npz", quads=quads[:, :, :2], live=live, **values)
         if not os.environ.get("DISPLAY"):
@@ -423,17 +424,28 @@ class ImpactOutput:
         for k, v in values.items():
             grid.cell_data[k] = v
         grid = grid.extract_cells(np.flatnonzero(live)) if not live.all() else grid
-        plotter = pyvista.Plotter(shape=(1, 3), off_screen=True, window_size=(1500, 560))
+        panels = list(values)   # SDV1..3, and the warp's critical stretch with a strength scatter
+        plotter = pyvista.Plotter(shape=(1, len(panels)), off_screen=True,
+                                  window_size=(500 * len(panels), 560))
         titles = {"SDV1": "SDV1 (0: both yarns broken / removed)", "SDV2": "SDV2 = alpha1 (warp)",
                   "SDV3": "SDV3 = alpha2 (fill)"}
-        for j, k in enumerate(("SDV1", "SDV2", "SDV3")):
+        for j, k in enumerate(panels):
             plotter.subplot(0, j)
-            if grid.n_cells:
-                # No scalar bar: VTK's bar formats its labels with std::regex, which aborts
-                # when DOLFINx (another libstdc++ ABI user) was imported first.
-                plotter.add_mesh(grid.copy(), scalars=k, clim=(0.0, 1.0), cmap="viridis",
+            if k == "mu_crit1":   # the field itself, every cell (removed ones too)
+                lo, hi = float(values[k].min()), float(values[k].max())
+                full = pyvista.UnstructuredGrid(cells, np.full(n, 9, dtype=np.uint8), points)
+                full.cell_data[k] = values[k]
+                plotter.add_mesh(full, scalars=k, clim=(lo, max(hi, lo + 1e-9)), cmap="magma",
                                  show_edges=False, show_scalar_bar=False)
-            plotter.add_text(titles[k] + "\npurple 0 ... yellow 1, blank = removed", font_size=9)
+                plotter.add_text(f"warp critical stretch (strength scatter)\n"
+                                 f"black {lo:.4f} ... yellow {hi:.4f}", font_size=9)
+            else:
+                if grid.n_cells:
+                    # No scalar bar: VTK's bar formats its labels with std::regex, which aborts
+                    # when DOLFINx (another libstdc++ ABI user) was imported first.
+                    plotter.add_mesh(grid.copy(), scalars=k, clim=(0.0, 1.0), cmap="viridis",
+                                     show_edges=False, show_scalar_bar=False)
+                plotter.add_text(titles[k] + "\npurple 0 ... yellow 1, blank = removed", font_size=9)
             plotter.view_xy()
         plotter.screenshot(str(self.out_dir / "damage_map.png"))
         plotter.close()

@@ -26,14 +26,17 @@ from typing import Any, Callable
 
 from fabric_fenicsx.impact.term_specs import check_term_specs, resolve_term_specs
 
-__all__ = ["InputError", "SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "load_scene", "load_fabric",
+__all__ = ["InputError", "SceneError", "Scene", "SCHEMA", "EDGES", "FIELDS", "SCATTER_FIELDS", "load_scene", "load_fabric",
            "check_output_dir", "parse_override", "describe_schema", "locking_warning", "ignored_keys_warning",
            "yarns_follow_the_mesh"]
 
 EDGES = ("left", "right", "bottom", "top")
 """Edge names: x = -side/2, x = +side/2, y = -side/2, y = +side/2 (global X-Y, Table 3)."""
 
-FIELDS = ("displacement", "velocity", "P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3")
+FIELDS = ("displacement", "velocity", "P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3", "mu_crit1", "mu_crit2")
+SCATTER_FIELDS = ("mu_crit1", "mu_crit2")
+"""Cell fields of a strength scatter (each cell's warp and fill critical stretch, written with
+``material.scatter`` on only)."""
 """Fields the XDMF time series can hold: nodal displacement and velocity, and cell-wise
 (area-weighted cell averages of the quadrature points) yarn stresses P1, P2 (N/m), yarn
 strains E1, E2 and the state variables of Table 2 (SDV1 = 0 for a removed cell)."""
@@ -169,6 +172,16 @@ SCHEMA: dict[str, dict[str, Key]] = {
                               "(no longer a unit cell; see docs/impact_model.md)"),
         "surrogate_cache": Key("", optional_text,
                                "directory of the surrogate's tile cache (\"\" = its default)"),
+        "scatter": Key("none", choice("none", "fibrils", "weibull"),
+                       "strength scatter of the yarn segments (fabric_fenicsx.material.scatter): none = "
+                       "every yarn as strong as Eq. 2-25's mean; fibrils = each segment draws its own "
+                       "fibrils (Eq. 2-22); weibull = Weibull-distributed critical strain per segment"),
+        "seed": Key(0, integer(0), "seed of the strength scatter's field (the same on every mesh and rank)"),
+        "weibull_modulus": Key(11.7, number(0.0, lo_open=True),
+                               "Weibull modulus of the segment critical strain (scatter = weibull; default: "
+                               "Kevlar 49 single yarns as a proxy, docs/impact_model.md)"),
+        "fibrils": Key(326, integer(1), "fibrils per yarn segment (scatter = fibrils; 555 dtex / 1.7 dtex "
+                       "Zylon AS)"),
     },
     "membrane": {
         "shear_modulus": Key(0.0, number(0.0, unit="N/m"),

@@ -9,7 +9,8 @@ from fabric_fenicsx.impact.scene import Scene, load_fabric
 from fabric_fenicsx.impact.term_specs import build_scene_terms
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
 
-__all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile", "quadrature_degree"]
+__all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile", "quadrature_degree",
+           "build_strength_field"]
 
 EDGE_TAGS = {"left": LEFT, "right": RIGHT, "bottom": BOTTOM, "top": TOP}
 """Scene edge names -> facet tags of the fabric meshes."""
@@ -68,3 +69,31 @@ def build_projectile(scene: Scene) -> tuple[Projectile, PenaltyContact]:
     contact = PenaltyContact(projectile, damping_ratio=p.contact_damping,
                              penalty_fraction=p.penalty_fraction)
     return projectile, contact
+
+
+def build_strength_field(scene: Scene, fabric: Fabric, membrane, comm):
+    """The scene's strength scatter (``material.scatter``, :mod:`fabric_fenicsx.material.scatter`)
+    at the membrane's owned points: (scatter, laws, damage range). ``laws`` is None with scatter
+    "none", else (mu_crit, scale), each (n_points, 2): the law of each point's cell
+    (:func:`~fabric_fenicsx.material.scatter.cell_laws` over its reference corners). The damage
+    range is the bounds over every rank's points, so every rank builds the same table."""
+    import numpy as np
+    from mpi4py import MPI
+
+    from fabric_fenicsx.impact.output import cell_corners
+    from fabric_fenicsx.material.scatter import StrengthScatter, cell_laws
+
+    mat = scene.material
+    scatter = StrengthScatter(mat.scatter, mat.seed, mat.weibull_modulus, mat.fibrils)
+    if not scatter.on:
+        return scatter, None, None
+    X = membrane.V.tabulate_dof_coordinates()[:, :2]
+    corners = X[cell_corners(membrane.V, membrane.n_cells)]
+    mu_crit, scale = cell_laws(scatter, fabric, mat.angle, corners)
+    npc = membrane.n_points_per_cell
+    mu_crit, scale = np.repeat(mu_crit, npc, axis=0), np.repeat(scale, npc, axis=0)
+    local = scatter.damage_range(fabric, mu_crit, scale)
+    lo = [comm.allreduce(float(x), op=MPI.MIN) for x in local.mu_crit_min]
+    hi = [comm.allreduce(float(x), op=MPI.MAX) for x in local.mu_complete_max]
+    return scatter, (mu_crit, scale), type(local)(np.array(lo), np.array(hi))
+

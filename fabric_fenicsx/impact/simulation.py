@@ -32,8 +32,9 @@ from fabric_fenicsx.impact import trouble
 from fabric_fenicsx.impact.ledger import EnergyLedger, reduce_named
 from fabric_fenicsx.impact.pictures import FabricPictures
 from fabric_fenicsx.impact.removal import CellRemoval
-from fabric_fenicsx.impact.scene import Scene
-from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, build_projectile, build_terms,
+from fabric_fenicsx.impact.scene import SCATTER_FIELDS, Scene
+from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, build_projectile,
+                                         build_strength_field, build_terms,
                                          quadrature_degree)
 from fabric_fenicsx.impact.summary import build_summary
 from fabric_fenicsx.impact.timestep import (DtChange, check_due, damping_coefficient, highest_frequency,
@@ -129,6 +130,7 @@ class ImpactSimulation:
         self.omega_cell = unit_cell_frequency(self.fabric, k_straight)
         self.beta = damping_coefficient(self.xi, self.omega_cell)
         self.xi_mesh = 0.5 * self.beta * self.omega_straight   # its damping ratio at this mesh's highest frequency
+        self.scatter, self.laws, self.damage_range = build_strength_field(sc, self.fabric, m, comm)
         if surrogate is None and material is None:
             surrogate = self.default_surrogate()
         self.surrogate = surrogate
@@ -165,7 +167,8 @@ class ImpactSimulation:
         self.dt_initial = self.dt
         self.dt_changes: list[DtChange] = []
 
-        self.output = ImpactOutput(self.out_dir, m, list(sc.output.fields) if sc.output.xdmf_interval > 0 else [],
+        fields = [f for f in sc.output.fields if f not in SCATTER_FIELDS or self.laws is not None]
+        self.output = ImpactOutput(self.out_dir, m, fields if sc.output.xdmf_interval > 0 else [],
                                    comm, HISTORY_COLUMNS, scene=sc)
         out = sc.output
         self.pictures = (FabricPictures(m, comm, out.animation_interval if out.animation else 0.0)
@@ -188,13 +191,13 @@ class ImpactSimulation:
         workers = 1 if self.comm.size > 1 else None
         cache = self.scene.material.surrogate_cache or None
         return Surrogate(self.fabric, cache_dir=cache, workers=workers,
-                         progress=self.verbose and self.rank0)
+                         progress=self.verbose and self.rank0, damage_range=self.damage_range)
 
     def default_material(self, membrane: Membrane) -> YarnStress:
         """The scene's material: the surrogate at the membrane's points with the scene's damage
         switch and the damping coefficient :attr:`beta`."""
         return YarnStress(self.surrogate, membrane.quadrature_weights_detJ, self.scene.material.damage,
-                          self.beta, straight_modulus=self.k_straight)
+                          self.beta, straight_modulus=self.k_straight, laws=self.laws)
 
     def _check_material(self) -> None:
         """A material passed in must be a QuadratureMaterial over the membrane's points."""

@@ -109,6 +109,26 @@ def build_summary(sim, end_reason: str, n_steps: int, dt: float, wall: float,
                     "omega_max": sim.omega_straight,
                     "xi_mesh": sim.xi_mesh,
                     "share_of_absorbed": b.viscous / absorbed if absorbed > 0 else 0.0},
+        "scatter": _scatter_section(sim),
         "settings": sc.to_dict(),
         **code_fingerprint(),
     }
+
+
+def _scatter_section(sim) -> dict:
+    """The strength scatter of the run (model, seed, its parameters) and the spread of the cell
+    laws it gave, over every rank: the critical stretch per yarn (min, mean, max)."""
+    from mpi4py import MPI
+
+    out = dict(sim.scatter.as_dict())
+    if sim.laws is None:
+        return out
+    mu = sim.laws[0][::sim.npc]   # one law per cell
+    comm = sim.comm
+    count = comm.allreduce(mu.shape[0], op=MPI.SUM)
+    for i, yarn in enumerate(("warp", "fill")):
+        out[f"mu_crit_{yarn}"] = {
+            "min": comm.allreduce(float(mu[:, i].min(initial=float("inf"))), op=MPI.MIN),
+            "mean": comm.allreduce(float(mu[:, i].sum()), op=MPI.SUM) / max(count, 1),
+            "max": comm.allreduce(float(mu[:, i].max(initial=0.0)), op=MPI.MAX)}
+    return out

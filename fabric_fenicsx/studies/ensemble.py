@@ -110,7 +110,7 @@ def format_summary(rep: dict) -> str:
 
 def run_members(scene: str, overrides: list[str], v0: float, n: int, out_dir: str | Path,
                 jobs: int = 1, perturbation: float = PERTURBATION, on_member=None, executor=None,
-                progress=None) -> list[dict]:
+                progress=None, first_seed: int | None = None) -> list[dict]:
     """Run the n members of an ensemble of the scene file ``scene`` (with ``overrides``, the
     impact velocity v0 (1 + k perturbation)) as ``fabric-fenicsx impact`` processes, ``jobs`` at
     a time (:func:`fabric_fenicsx.studies.runpool.run_all`, which reuses a member stored with the
@@ -118,17 +118,27 @@ def run_members(scene: str, overrides: list[str], v0: float, n: int, out_dir: st
     failed member's row has ``error``: the exit code and the last line of its log), then
     ``progress`` (a :class:`~fabric_fenicsx.studies.runpool.Progress`) counts it. ``executor``:
     where the processes run (:mod:`fabric_fenicsx.studies.executor`; default here). Returns the
-    rows in the order of :func:`offsets`."""
+    rows in the order of :func:`offsets`.
+
+    ``first_seed``: None (members differ by their impact velocity, the twins of one fabric), or
+    the members are different fabrics of the scene's strength scatter: member i (the i-th of
+    :func:`offsets`) has ``material.seed`` = first_seed + i and the velocity v0 itself."""
     from fabric_fenicsx.studies.runpool import Run, run_all
 
-    velocity = {f"member_{k}": (k, member_velocity(v0, k, perturbation)) for k in offsets(n)}
-    runs = [Run(key, scene, (*overrides, f"projectile.velocity={v!r}")) for key, (k, v) in velocity.items()]
+    if first_seed is None:
+        member = {f"member_{k}": (k, member_velocity(v0, k, perturbation), None) for k in offsets(n)}
+    else:
+        member = {f"seed_{first_seed + i}": (k, v0, first_seed + i) for i, k in enumerate(offsets(n))}
+    runs = [Run(key, scene, (*overrides, f"projectile.velocity={v!r}",
+                             *([] if seed is None else [f"material.seed={seed}"])))
+            for key, (k, v, seed) in member.items()]
     rows = {}
 
     def done(run, summary, reused):
-        k, v = velocity[run.key]
+        k, v, seed = member[run.key]
         rows[k] = ({"k": k, "velocity": v, "error": summary["error"]} if "error" in summary
                    else member_row(k, v, summary))
+        rows[k]["seed"] = seed if seed is not None else summary.get("scatter", {}).get("seed")
         if on_member is not None:
             on_member(rows[k])
         if progress is not None:

@@ -34,6 +34,7 @@ from fabric_fenicsx.surrogate.kernels import damage as damage_kernel
 from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
 from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
+from fabric_fenicsx.material.scatter import point_laws
 from fabric_fenicsx.surrogate.ship import ShippedTiles
 from fabric_fenicsx.surrogate.tiles import (QUANTITIES, Progress, cache_key, cache_problem, default_cache_dir,
                                   load_tile, save_tile, solve_blocks, warn_unwritable)
@@ -118,6 +119,10 @@ class Surrogate:
         they are solved: True (the tiles shipped with the package,
         :mod:`~fabric_fenicsx.surrogate.ship`), a folder of the same layout, or False; not read
         when ``cache_dir`` is False.
+    damage_range : None or the bounds of a strength scatter's field per yarn
+        (:class:`fabric_fenicsx.material.scatter.DamageRange`): the table then reaches the
+        highest failure strain and checks damage from the lowest critical stretch on. It only
+        grows by whole tiles of the same grid: every tile is the one without it.
     workers : processes for solving tiles (default: all cores).
     progress : show a progress bar while solving tiles.
     """
@@ -125,7 +130,7 @@ class Surrogate:
     def __init__(self, fabric: Fabric, resolution: float = 0.002, r_nodes: int = 11, order: int = 3,
                  E_min: float = -0.06, n_elements: int | None = None, tile: int = 16,
                  cache_dir: str | Path | None | bool = None, workers: int | None = None,
-                 progress: bool = True, shipped: bool | str | Path = True):
+                 progress: bool = True, shipped: bool | str | Path = True, damage_range=None):
         if not isinstance(fabric, Fabric):
             raise ValueError(f"fabric must be a Fabric, got {fabric!r}")
         if not (isinstance(resolution, (int, float)) and 0 < resolution <= 0.01):
@@ -148,17 +153,23 @@ class Surrogate:
         cell = UnitCell(fabric, n_elements=n_elements)
         self.n_elements = cell.n_elements
         self.mu_crit = cell.mu_crit.copy()
-        law = fabric.damage
-        mu_complete = np.array([law.mu_complete(m) for m in self.mu_crit])
+        mu_complete = np.array([fabric.damage.mu_complete(m) for m in self.mu_crit])
+        self.mu_safe = self.mu_crit.copy()   # below it (less MU_MARGIN) no point starts damage
+        if damage_range is not None:
+            self.mu_safe = np.minimum(self.mu_safe, damage_range.mu_crit_min)
+            mu_complete = np.maximum(mu_complete, damage_range.mu_complete_max)
+        self.mu_complete = mu_complete
         L = np.array([fabric.warp.L, fabric.fill.L])
         self.E_fail = 0.5 * ((mu_complete * L / cell.w) ** 2 - 1.0)
-        # One ghost node below E_min and above the top for the cubic kernel's taps.
+        # One ghost node below E_min and above the top for the cubic kernel's taps; the node
+        # count is padded to whole tiles, so that a longer table (a scatter's damage_range) only
+        # adds tiles and every tile is the same, whatever the table's length.
         k_lo = math.floor(E_min / self.h + 1e-9)
         k_hi = math.ceil(self.E_fail.max() / self.h - 1e-9) + 1
         self.E_table = (k_lo * self.h, k_hi * self.h)
         self.E_lo = (k_lo - 1) * self.h
-        self.nE = k_hi - k_lo + 3
-        self.n_tiles = -(-self.nE // self.tile)
+        self.n_tiles = -(-(k_hi - k_lo + 3) // self.tile)
+        self.nE = self.n_tiles * self.tile
         # Uniform in sqrt(r): the weak yarn's stretch changes fastest as r -> 0, where the
         # damage law is most sensitive to it (measured: see the surrogate report).
         self.r_grid = np.linspace(0.0, 1.0, self.r_nodes) ** 2
@@ -179,8 +190,8 @@ class Surrogate:
         self._ready = {layer: np.zeros((self.nE, self.nE), bool) for layer in self.built}
         self._kernel_quantities = {}  # quantities -> interp_kernel.lookup's spec of them
         self._law = damage_kernel.law_arguments(fabric.damage)
-        settings = {"resolution": self.h, "r_nodes": self.r_nodes, "E_lo": self.E_lo, "nE": self.nE,
-                    "tile": self.tile, "n_elements": self.n_elements, "tol": cell.tol,
+        settings = {"resolution": self.h, "r_nodes": self.r_nodes, "E_lo": self.E_lo,
+                    "tile": self.tile, "padded": "whole tiles", "n_elements": self.n_elements, "tol": cell.tol,
                     "alpha_broken": ALPHA_BROKEN, "r_limit": R_LIMIT, "r_spacing": "sqrt"}
         self.key = cache_key(fabric.to_dict(), settings)
         self.cache_dir, self.cache_writable = None, False
@@ -318,7 +329,7 @@ class Surrogate:
             self._coef["damaged"][:, i0:i1 + 1, j0:j1 + 1] = np.einsum("ap,bq,abxcijr->cijrxpq",
                                                                        M, M, F, optimize=True)
             mu = F[:, :, [_Q["mu1"], _Q["mu2"]]].max(axis=(3, 6))  # worst case over both cases and r
-        limit = (self.mu_crit - MU_MARGIN)[None, None, :, None, None]
+        limit = (self.mu_safe - MU_MARGIN)[None, None, :, None, None]
         with np.errstate(invalid="ignore"):  # NaN beside unbuilt tiles counts as unsafe
             self._safe[layer][i0:i1 + 1, j0:j1 + 1] = np.all(mu < limit, axis=(0, 1, 2))
 
@@ -459,14 +470,13 @@ class Surrogate:
         """:func:`interp_kernel.lookup`'s description of ``quantities``."""
         spec = self._kernel_quantities.get(quantities)
         if spec is None:
-            law = self.fabric.damage
             dead = [np.full(len(quantities), np.nan) for _ in range(2)]
             for i in range(2):
                 for c, q in enumerate(quantities):
                     if q == f"P{i + 1}":
                         dead[i][c] = 0.0
                     elif q == f"mu{i + 1}":
-                        dead[i][c] = law.mu_complete(self.mu_crit[i])
+                        dead[i][c] = self.mu_complete[i]
             spec = (np.array([_Q[q] for q in quantities], dtype=np.int64),
                     np.array([not q.startswith("mu") for q in quantities]), dead[0], dead[1])
             self._kernel_quantities[quantities] = spec
@@ -492,7 +502,8 @@ class Surrogate:
         return P1, P2, mu1, mu2
 
     def update(self, E1, E2, alpha1_hist, alpha2_hist, return_mu: bool = False,
-               tension_only: bool = True, tol: float = 1e-10, crack_band=None):
+               tension_only: bool = True, tol: float = 1e-10, crack_band=None,
+               critical_stretch=None, softening_scale=None):
         """Constitutive update: P1, P2 (N/m) and the new alpha1, alpha2 [, mu1, mu2].
 
         alpha_i = min(alpha_i^hist, alpha(mu_i^max(alpha))) (Eq. 2-25, appendix A.1) is solved
@@ -513,6 +524,11 @@ class Surrogate:
         shaped like E1, in (0, 1]: per point and yarn the crack-band scale s of the softening
         branch, alpha_i = alpha(mu_crit + (mu_i - mu_crit) / s)
         (:func:`fabric_fenicsx.material.fibril.crack_band_alpha`).
+
+        critical_stretch, softening_scale: None or per yarn a scalar or an array shaped like E1:
+        each point's own mu_i^crit and scale s_i > 0 of its softening branch (a strength
+        scatter's field, :func:`fabric_fenicsx.material.scatter.point_laws`; s multiplies
+        ``crack_band``), within the table's ``damage_range`` (checked).
         """
         E1, E2, a1h, a2h, shape = self._inputs(E1, E2, alpha1_hist, alpha2_hist,
                                                 ("alpha1_hist", "alpha2_hist"))
@@ -523,8 +539,13 @@ class Surrogate:
             if not np.all((band > 0.0) & (band <= 1.0)):
                 bad = band[~((band > 0.0) & (band <= 1.0))]
                 raise ValueError(f"crack_band scales must lie in (0, 1], got {bad.flat[0]!r}")
+        mu_crit = np.empty((E1.size, 2))
+        mu_crit[:] = self.mu_crit
+        if critical_stretch is not None or softening_scale is not None:
+            point_laws(self.fabric.damage, critical_stretch, softening_scale, shape, mu_crit, band,
+                       self.mu_safe, self.mu_complete)
         P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol,
-                                                                             band)
+                                                                             band, mu_crit)
         if np.any(status == damage_kernel.NON_FINITE):
             k = int(np.flatnonzero(status == damage_kernel.NON_FINITE)[0])
             raise SurrogateError(
@@ -559,8 +580,9 @@ class Surrogate:
             out += [mu[:, 0].reshape(shape), mu[:, 1].reshape(shape)]
         return tuple(out)
 
-    def _update_points(self, E1, E2, a1, a2, tol, band):
-        """:func:`damage_kernel.update` of the points (crack-band scales ``band``, (n, 2)),
+    def _update_points(self, E1, E2, a1, a2, tol, band, mu_crit):
+        """:func:`damage_kernel.update` of the points (crack-band scales ``band``, (n, 2),
+        critical stretches ``mu_crit``, (n, 2)),
         building the tiles it asks for: (P, alpha, residual, status, number of points that
         iterated)."""
         n = E1.size
@@ -568,7 +590,7 @@ class Surrogate:
         residual, status = np.empty((n, 2)), np.empty(n, np.int8)
         iterated, waiting = damage_kernel.update(
             E1, E2, a1, a2, self._table(), self._spec(("P1", "P2")), self._spec(("mu1", "mu2")),
-            self._law, self.mu_crit, band, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status)
+            self._law, mu_crit, band, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status)
         if waiting:
             again = np.flatnonzero((status == damage_kernel.NEEDS_TILES)
                                    | (status == damage_kernel.NEEDS_DAMAGED_TILES))
@@ -578,7 +600,7 @@ class Surrogate:
             cells = self._cells(E1[growing], E2[growing])
             self._require("damaged", cells.i, cells.j)  # every r (and the intact layer)
             *parts, more = self._update_points(E1[again], E2[again], a1[again], a2[again], tol,
-                                               band[again])
+                                               band[again], mu_crit[again])
             for whole, part in zip((P, alpha, residual, status), parts):
                 whole[again] = part
             iterated += more

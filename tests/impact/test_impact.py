@@ -501,12 +501,15 @@ for name, raw in scenes.items():
         sim.output.close()
     local = {"free_nodes": int(np.count_nonzero(sim.removal.free_nodes)),
              "removed_cells": int(np.count_nonzero(~sim.live_cells)), "cells": int(sim.live_cells.size)}
+    if sim.laws is not None:   # the field: each owned cell's centre and its laws
+        centres = sim._cell_centres()[:, :2]
+        local["field"] = np.column_stack([centres, sim.laws[0][::sim.npc], sim.laws[1][::sim.npc]]).tolist()
     results[name] = {"summary": {k: s[k] for k in DIGEST}, "ranks": sim.comm.gather(local)}
 if sim.comm.rank == 0:
     with open(result, "w") as f:
         json.dump(results, f)
 """
-DIGEST = ("end_reason", "residual_velocity", "energy_error", "n_steps", "deleted_cells", "eroded_cells",
+DIGEST = ("end_reason", "scatter", "residual_velocity", "energy_error", "n_steps", "deleted_cells", "eroded_cells",
           "free_nodes", "perforated", "end_time", "n_ranks", "absorbed_energy", "damage_onset_position",
           "damage_onset_radius", "damaged_cells", "damage_extent_radius")
 DAMAGE_SCENE = {**TINY, "material": {"angle": 90.0, "damage": True},
@@ -514,9 +517,11 @@ DAMAGE_SCENE = {**TINY, "material": {"angle": 90.0, "damage": True},
                 "boundary": {"clamped": ["left", "right", "bottom", "top"]}}
 """The tiny fabric clamped all round, hit at 200 m/s with damage on: cells deleted (both yarns
 broken) and eroded (stretched beyond the unit cell), a plug of fabric cut loose, a perforation."""
+SCATTER_SCENE = {**DAMAGE_SCENE, "material": {**DAMAGE_SCENE["material"], "scatter": "weibull", "seed": 7}}
 DAMAGE_SCENES = {"centred": DAMAGE_SCENE,
                  "off-centre": {**DAMAGE_SCENE, "projectile": {**DAMAGE_SCENE["projectile"],
-                                                               "x": 0.02, "y": 0.013}}}
+                                                               "x": 0.02, "y": 0.013}},
+                 "scatter": SCATTER_SCENE, "scatter, again": SCATTER_SCENE}
 """The damage scene hit at the centre and off it (where one rank removes cells in steps where
 the other removes none)."""
 
@@ -592,6 +597,35 @@ def test_cells_removed_on_one_rank_only_do_not_hang_the_other(damage_runs):
     for key in ("end_reason", "n_steps", "deleted_cells", "eroded_cells", "perforated"):
         assert s2[key] == s1[key], key
     assert s2["residual_velocity"] == pytest.approx(s1["residual_velocity"], rel=1e-6)
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
+def test_a_strength_scatter_is_the_same_field_on_one_and_two_ranks_and_a_seed_repeats(damage_runs):
+    """The Weibull field of seed 7: every cell's laws (by its centre) the same on 1 and 2 ranks,
+    the run with it the same on both (damage, deletion, erosion), and the same seed run twice
+    gives the same run exactly; the summary records the settings and the field's spread."""
+    (s1, r1), (s2, r2) = damage_runs["scatter"]
+    (again, _), _ = damage_runs["scatter, again"]
+    assert s1 == again                                    # one machine, one seed: the same run
+    assert s1["scatter"]["model"] == "weibull" and s1["scatter"]["seed"] == 7
+    for yarn in ("mu_crit_warp", "mu_crit_fill"):   # the mean is summed in another order on 2 ranks
+        assert s2["scatter"][yarn] == pytest.approx(s1["scatter"][yarn], rel=1e-14, abs=0)
+    warp = s1["scatter"]["mu_crit_warp"]
+    assert warp["min"] < warp["mean"] < warp["max"]       # a field, not a constant
+    def by_centre(rows):   # the centre is a mean of corners, summed in the cell's own vertex order
+        rows = np.array(rows)
+        return rows[np.lexsort((np.round(rows[:, 1], 12), np.round(rows[:, 0], 12)))]
+
+    serial, ranks = by_centre(r1[0]["field"]), by_centre(r2[0]["field"] + r2[1]["field"])
+    assert len(r2[0]["field"]) > 0 and len(r2[1]["field"]) > 0
+    assert ranks[:, :2] == pytest.approx(serial[:, :2], abs=1e-15)
+    assert ranks[:, 2:] == pytest.approx(serial[:, 2:], rel=1e-15, abs=0)
+    for key in ("end_reason", "n_steps", "deleted_cells", "eroded_cells", "perforated"):
+        assert s2[key] == s1[key], key
+    assert s2["residual_velocity"] == pytest.approx(s1["residual_velocity"], rel=1e-9)
+    (plain, _), _ = damage_runs["centred"]
+    assert plain["scatter"] == {"model": "none", "seed": 0}
+    assert s1["residual_velocity"] != plain["residual_velocity"]
 
 
 def test_the_damping_coefficient_is_a_property_of_the_fabric_not_of_the_mesh(tmp_path):

@@ -25,7 +25,7 @@ XDMF_INTERVAL = 1e-5
 
 TINY = {
     "description": "tiny output test scene",
-    "material": {"angle": 90.0, "damage": True, "erosion_strain": 0.02},
+    "material": {"angle": 90.0, "damage": True, "erosion_strain": 0.02, "scatter": "weibull", "seed": 1},
     "mesh": {"kind": "uniform", "side": 0.08, "n": 16},
     "projectile": {"diameter": 0.02, "velocity": 100.0, "mass": 0.005},
     "boundary": {"clamped": ["bottom", "top"]},
@@ -83,6 +83,11 @@ def test_each_frame_is_one_grid_with_every_field(damaged_run):
         assert data.GetPointData().GetArray(name).GetNumberOfComponents() == 3, name
     for name in CELL_FIELDS:
         assert data.GetCellData().GetArray(name).GetNumberOfTuples() == 256, name
+    # the strength scatter's field: each cell's critical stretches, within the summary's spread
+    for name, yarn in (("mu_crit1", "warp"), ("mu_crit2", "fill")):
+        field = np.array([data.GetCellData().GetArray(name).GetValue(i) for i in range(256)])
+        spread = summary["scatter"][f"mu_crit_{yarn}"]
+        assert field.min() == spread["min"] and field.max() == spread["max"] and spread["min"] < spread["max"]
     # the mesh is stored once: the data file is the mesh plus each frame's fields
     n_nodes = data.GetNumberOfPoints()
     per_frame = 8 * (len(NODAL_FIELDS) * 3 * n_nodes + len(CELL_FIELDS) * 256)
@@ -184,7 +189,8 @@ def test_serial_and_two_ranks_write_the_same_fields(impact_on_one_and_two_ranks)
     for i in range(len(serial)):
         (xa, a), (xb, b) = _by_position(serial[i]), _by_position(parallel[i])
         np.testing.assert_allclose(xb, xa, rtol=0, atol=1e-12)
-        for name in NODAL_FIELDS + CELL_FIELDS:
+        assert set(a) == set(NODAL_FIELDS + CELL_FIELDS) - {"mu_crit1", "mu_crit2"} == set(b)   # no scatter
+        for name in a:
             scale = np.abs(a[name]).max() + 1e-30
             np.testing.assert_allclose(b[name], a[name], rtol=0, atol=1e-6 * scale, err_msg=name)
 
@@ -195,5 +201,5 @@ def _by_position(grid):
     p = np.lexsort(np.round(grid.points[:, :2], 9).T[::-1])
     c = np.lexsort(np.round(grid.cell_centers().points[:, :2], 9).T[::-1])
     fields = {k: grid.point_data[k][p] for k in NODAL_FIELDS}
-    fields.update({k: grid.cell_data[k][c] for k in CELL_FIELDS})
+    fields.update({k: grid.cell_data[k][c] for k in CELL_FIELDS if k in grid.cell_data})
     return grid.points[p], fields

@@ -122,7 +122,8 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, band, floor, to
     tol around a jump of the target; alpha - target in ``residual``), NON_FINITE (a non-finite
     alpha, from a non-finite table stretch), NEEDS_TILES or NEEDS_DAMAGED_TILES (the point is
     not done). ``band`` (n, 2): each point's crack-band scale of the softening branch per yarn
-    (:func:`band_alpha`; 1 = the law as it is). Every done point has 0 <= alpha <= alpha^hist.
+    (:func:`band_alpha`; 1 = the law as it is); ``mu_crit`` (n, 2): each point's critical stretch per
+    yarn (the fabric's, or its strength scatter's). Every done point has 0 <= alpha <= alpha^hist.
     Returns the numbers of points that iterated and that are not done. Only the points whose cell can reach mu_crit (flag 1 of interp_kernel.lookup) look
     up their stretches. table: :func:`interp_kernel.lookup`'s; spec_P, spec_mu: its specs of
     (P1, P2) and (mu1, mu2)."""
@@ -143,7 +144,7 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, band, floor, to
         if flag[n] == 0:
             continue
         hist[0], hist[1] = a1[n], a2[n]
-        point = (a1[n], a2[n], law, mu_crit, table, spec_mu, E1[n:n + 1], E2[n:n + 1], x1, x2, mu,
+        point = (a1[n], a2[n], law, mu_crit[n], table, spec_mu, E1[n:n + 1], E2[n:n + 1], x1, x2, mu,
                  one, band[n])
         target[0], target[1] = _law_target(point, a1[n], a2[n])
         if not (hist[0] - target[0] > tol or hist[1] - target[1] > tol):
