@@ -40,6 +40,9 @@ def run(args: argparse.Namespace) -> int:
         problems.append(f"--sizes must lie in (0, 0.005] m (the strip is 10 mm wide), got {sizes}")
     if any(f not in ("aligned", "free") for f in families):
         problems.append(f"--families must name aligned and/or free, got {families}")
+    from fabric_fenicsx.material.scatter import CELL_RULES
+    if args.cell_rule not in CELL_RULES:
+        problems.append(f"--cell-rule must be one of {list(CELL_RULES)}, got {args.cell_rule!r}")
     if not args.shear_modulus >= 0:
         problems.append(f"--shear-modulus must be >= 0 N/m, got {args.shear_modulus}")
     if args.seeds < 3:
@@ -58,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: {len(configs)} meshes x ({args.seeds} seeds of {args.scatter} + no scatter), "
               f"{jobs} at a time, into {out}", flush=True)
     with multiprocessing.get_context("spawn").Pool(jobs) as pool:
-        setup = strip.StripSetup(shear_modulus=args.shear_modulus)
+        setup = strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule)
         pending = [pool.apply_async(strip.run_configuration, (f, h, args.scatter, seeds, str(paths[(f, h)]), setup))
                    for f, h in configs]
         for (f, h), job in zip(configs, pending):
@@ -68,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     tables = {c: strip.read_table(paths[c]) for c in configs}
     report = strip.summarise(tables)
     report.update(scatter=args.scatter, seeds=args.seeds,
-                  setup=strip.StripSetup(shear_modulus=args.shear_modulus).__dict__,
+                  setup=strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule).__dict__,
                   wall_time_s=time.perf_counter() - t0)
     (out / "strip.json").write_text(json.dumps(report, indent=1))
     strip.plot(tables, report, out / "strip.png")

@@ -1,13 +1,18 @@
-"""From a scene to the model's parts: fabric, mesh, weak-form terms, projectile and contact."""
+"""From a scene to the model's parts: fabric, strength field, mesh, weak-form terms, projectile and contact."""
 from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
 
 from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, aligned_square, load_mesh,
                                      uniform_square)
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
 from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear, MembraneTerm
+from fabric_fenicsx.impact.output import cell_corners
 from fabric_fenicsx.impact.scene import Scene, load_fabric
 from fabric_fenicsx.impact.term_specs import build_scene_terms
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
+from fabric_fenicsx.material.scatter import StrengthScatter, cell_laws
 
 __all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile", "quadrature_degree",
            "build_strength_field"]
@@ -77,12 +82,6 @@ def build_strength_field(scene: Scene, fabric: Fabric, membrane, comm):
     "none", else (mu_crit, scale), each (n_points, 2): the law of each point's cell
     (:func:`~fabric_fenicsx.material.scatter.cell_laws` over its reference corners). The damage
     range is the bounds over every rank's points, so every rank builds the same table."""
-    import numpy as np
-    from mpi4py import MPI
-
-    from fabric_fenicsx.impact.output import cell_corners
-    from fabric_fenicsx.material.scatter import StrengthScatter, cell_laws
-
     mat = scene.material
     scatter = StrengthScatter(mat.scatter, mat.seed, mat.weibull_modulus, mat.fibrils)
     if not scatter.on:

@@ -38,7 +38,7 @@ from fabric_fenicsx.material.fibril import ExponentialDamage, FibrilBundle, fit_
 
 __all__ = ["SCATTER_MODELS", "FAMILIES", "WEIBULL_MODULUS", "ZYLON_AS_FILAMENTS",
            "StrengthScatter", "DamageRange", "segment_uniform", "segment_index",
-           "misalignment_for_beta", "cell_laws", "failure_stretch", "fibril_draws", "point_laws"]
+           "misalignment_for_beta", "cell_laws", "CELL_RULES", "failure_stretch", "fibril_draws", "point_laws"]
 
 SCATTER_MODELS = ("none", "fibrils", "weibull")
 FAMILIES = ("warp", "fill")
@@ -259,8 +259,12 @@ class StrengthScatter:
 
 
 # --------------------------------------------------------------------------- cells
+CELL_RULES = ("patch", "yarn")
+"""How a cell reads the segments it covers (:func:`cell_laws`)."""
+
+
 def cell_laws(scatter: StrengthScatter, fabric, angle_deg: float, corners: np.ndarray,
-              samples_per_segment: int = 2) -> tuple[np.ndarray, np.ndarray]:
+              samples_per_segment: int = 2, rule: str = "patch") -> tuple[np.ndarray, np.ndarray]:
     """(mu_c, s), each (n_cells, 2) for warp and fill, of quadrilateral cells with reference
     corners ``corners`` (n_cells, 4, 2) in perimeter order.
 
@@ -271,7 +275,13 @@ def cell_laws(scatter: StrengthScatter, fabric, angle_deg: float, corners: np.nd
     mean of those laws over its yarns, weighted by each yarn's share of the cell. Segments are
     found by sampling the cell's bilinear map on a grid ``samples_per_segment`` times finer than
     the shorter segment. With scatter "none" every cell gets the fabric's law exactly.
+
+    ``rule = "yarn"`` instead takes, per family, only the yarn through the cell's centre (its
+    weakest segment in the cell): a column of cells along a yarn then chains one yarn's
+    segments, as the membrane's columns act (docs/mesh_independence.md section 10).
     """
+    if rule not in CELL_RULES:
+        raise ValueError(f"rule must be one of {list(CELL_RULES)}, got {rule!r}")
     corners = np.asarray(corners, float)
     nc = corners.shape[0]
     if not scatter.on or nc == 0:
@@ -289,19 +299,25 @@ def cell_laws(scatter: StrengthScatter, fabric, angle_deg: float, corners: np.nd
     half = ExponentialDamage(fabric.damage.beta, fabric.damage.width) \
         if isinstance(fabric.damage, ExponentialDamage) else None
     mu_out, s_out = np.empty((nc, 2)), np.empty((nc, 2))
+    centres = segment_index(corners.mean(axis=1), angle_deg, spacing)
     for family, (a, b) in enumerate(segment_index(points, angle_deg, spacing)):
+        if rule == "yarn":   # keep the samples on the centre's yarn only
+            on = a == np.repeat(centres[family][0], k * k)
+            a, b, cell_f = a[on], b[on], cell[on]
+        else:
+            cell_f = cell
         pairs, inverse = np.unique(np.stack([a, b], 1), axis=0, return_inverse=True)
         mu_seg, s_seg = scatter.segment_laws(fabric, family, pairs[:, 0], pairs[:, 1])
         mu_c0 = fabric.yarns[family].mu_crit
         span_half = _half_damage_offset(half, fabric.damage, mu_c0)
         strength = (mu_seg + s_seg * span_half)[inverse.ravel()]
         # per (cell, yarn): the weakest sample's segment; weight = its number of samples
-        order = np.lexsort((strength, a, cell))
-        key_cell, key_yarn = cell[order], a[order]
+        order = np.lexsort((strength, a, cell_f))
+        key_cell, key_yarn = cell_f[order], a[order]
         start = np.flatnonzero(np.r_[True, (np.diff(key_cell) != 0) | (np.diff(key_yarn) != 0)])
         weakest = order[start]                    # first of each group: the lowest strength
         count = np.diff(np.r_[start, order.size])
-        group_cell = cell[weakest]
+        group_cell = cell_f[weakest]
         seg = inverse.ravel()[weakest]
         total = np.bincount(group_cell, weights=count, minlength=nc)
         mu_out[:, family] = np.bincount(group_cell, weights=count * mu_seg[seg], minlength=nc) / total

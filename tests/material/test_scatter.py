@@ -167,3 +167,15 @@ def test_bad_scatter_settings_are_refused_with_the_key_named():
         from fabric_fenicsx.material.fibril import BundleDamage
         StrengthScatter("fibrils").segment_laws(FABRIC.replace(damage=BundleDamage.for_width(n=10)),
                                                 0, [0], [0])
+
+
+def test_the_yarn_rule_reads_only_the_yarn_through_the_cell_centre():
+    sc = StrengthScatter("weibull", seed=4)
+    w1, w2 = 2 * FABRIC.warp.w, 2 * FABRIC.fill.w
+    # warp yarns 0 and 1 (y < w2 and y > w2), segments 0 and 1; the centre lies on yarn 1
+    corners = np.array([[[0.1 * w1, 0.3 * w2], [1.9 * w1, 0.3 * w2], [1.9 * w1, 1.9 * w2], [0.1 * w1, 1.9 * w2]]])
+    mu, _ = cell_laws(sc, FABRIC, 0.0, corners, rule="yarn")
+    seg = sc.segment_laws(FABRIC, 0, [1, 1], [0, 1])[0]
+    assert mu[0, 0] == min(seg)
+    with pytest.raises(ValueError, match="rule"):
+        cell_laws(sc, FABRIC, 0.0, corners, rule="centre")

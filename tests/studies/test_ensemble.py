@@ -5,12 +5,15 @@ import csv
 import json
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fabric_fenicsx.studies import ensemble
 from fabric_fenicsx.studies.ensemble import member_row, member_velocity, offsets, statistics
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_offsets_alternate_around_the_unperturbed_member():
@@ -87,3 +90,35 @@ def test_the_command_on_a_small_elastic_impact_whose_members_agree(tmp_path, cap
     assert main(["ensemble", str(scene), "-n", "1", "--out", str(tmp_path / "x")]) == 2
     assert "--members must be at least 2" in capsys.readouterr().err
     assert main(["ensemble", str(scene), "--set", "run.damping=7", "--out", str(tmp_path / "y")]) == 2
+
+
+def test_members_of_a_strength_scatter_are_seeds_at_the_scenes_velocity(tmp_path, monkeypatch):
+    """With first_seed the members differ by material.seed (first_seed + i), not by velocity;
+    the rows carry their seed."""
+    from fabric_fenicsx.studies import runpool
+
+    seen = []
+
+    def command(run, out):
+        seen.append(run.overrides)
+        seed = int(run.overrides[-1].split("=")[1])
+        return [sys.executable, "-c", f"import json; open({str(out / 'summary.json')!r}, 'w').write(json.dumps("
+                f"dict(residual_velocity={10.0 + seed!r}, absorbed_energy=1.0)))"]
+    monkeypatch.setattr(runpool, "_command", command)
+    monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
+    rows = ensemble.run_members("scene.toml", ["material.scatter=weibull"], 57.3, 3, tmp_path, jobs=1,
+                                first_seed=5)
+    assert [r["seed"] for r in rows] == [5, 6, 7] and [r["k"] for r in rows] == [0, 1, -1]
+    assert all(r["velocity"] == 57.3 for r in rows)
+    assert [r["residual_velocity"] for r in rows] == [15.0, 16.0, 17.0]
+    assert all("projectile.velocity=57.3" in o and o[0] == "material.scatter=weibull" for o in seen)
+    assert sorted(p.name for p in tmp_path.iterdir() if p.is_dir()) == ["seed_5", "seed_6", "seed_7"]
+
+
+def test_seeds_without_a_scatter_are_refused(tmp_path):
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-m", "fabric_fenicsx.cli", "ensemble", "demos/scenes/y90.toml",
+                           "--seeds", "0", "--out", str(tmp_path / "e")], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 2 and "--seeds needs a strength scatter" in proc.stderr
