@@ -3,9 +3,9 @@
 Every warp segment of a 40 x 40 mm patch of Zylon AS (a segment = one yarn between two
 crossings, 0.73 mm) draws its critical stretch from the Weibull model (median = the thesis's
 mu_crit, modulus 11.7, seed 0); the same field read by the unit cells (one segment each) and by
-square cells of 1, 2 and 4 mm: each cell takes, per yarn crossing it, its weakest segment, and the mean over those
-yarns. Larger cells are weaker on average (weakest link along the yarns) and scatter less (the
-mean across them). No DOLFINx.
+square cells of 1, 2 and 4 mm: each cell takes the weakest segment it covers (the rule that keeps a
+strip's strength the same on every mesh, docs/mesh_independence.md section 10). Larger cells are
+weaker on average and scatter less: a cell of n segments is their weakest link. No DOLFINx.
 
 Run:  python3 demos/demo_scatter.py [output_dir]      (default output_dir: out/scatter)
 Writes ``scatter_field.png`` (the field on the segments and on 1 and 4 mm cells) and

@@ -170,20 +170,23 @@ def check_smith(out, stdout):
 
 
 def check_scatter(out, stdout):
-    """The segments' median critical strain is the thesis's (within 3 sampling sd); a cell of
-    size h touches on average h / s + 1 segments of length s along each yarn and takes the
-    weakest, so its mean is the segments' mean x (h / s + 1)^(-1/m) (weakest link of a Weibull
-    variable, m = 11.7) within 3 %, and larger cells scatter less."""
+    """The segments' median critical strain is the thesis's (within 3 sampling sd); a square cell
+    of size h touches on average (h / s1 + 1)(h / s2 + 1) segments (s1, s2 the segment length
+    and the yarn spacing) and takes the weakest, so its mean is the segments' mean x n^(-1/m)
+    (the weakest link of n Weibull variables, m = 11.7) within 3 %, and larger cells scatter
+    less."""
     import re
     rows = _csv(out / "scatter.csv")
     median = float(re.search(r"median segment strain ([0-9.]+)", stdout).group(1))
     seg = rows[0]
     n, mean0, sd0 = int(seg["cells"]), float(seg["mean_strain"]), float(seg["sd_strain"])
     assert median == pytest.approx(0.025, abs=3 * 1.2533 * sd0 / n ** 0.5)
-    s = float(seg["cell_mm"])
+    from fabric_fenicsx.material.fabric import zylon_as
+    s1, s2 = 2e3 * zylon_as().warp.w, 2e3 * zylon_as().fill.w     # segment length, yarn spacing (mm)
     for r in rows[1:]:
-        k = float(r["cell_mm"]) / s + 1.0
-        assert float(r["mean_strain"]) == pytest.approx(mean0 * k ** (-1 / 11.7), rel=0.03)
+        h = float(r["cell_mm"])
+        n = (h / s1 + 1.0) * (h / s2 + 1.0)
+        assert float(r["mean_strain"]) == pytest.approx(mean0 * n ** (-1 / 11.7), rel=0.03)
     sds = [float(r["sd_strain"]) for r in rows[1:]]
     assert sds == sorted(sds, reverse=True)
     _png(out / "scatter_field.png")

@@ -5,7 +5,11 @@ A 50 x 10 mm strip pulled along the warp to failure, once without scatter and on
 (``--seeds N``, default 100) of ``material.scatter`` (``--scatter``, default weibull), on each
 mesh family (``--families``, default aligned,free) and cell size (``--sizes`` in m, default
 0.002,0.001), with ``--shear-modulus`` G (N/m) an isotropic in-plane shear stiffness following
-the weave's integrity (``membrane.shear_modulus``; default 0, the thesis's membrane). The meshes run side by side in ``--jobs`` processes; each writes
+the weave's integrity (``membrane.shear_modulus``; default 0, the thesis's membrane), with
+``--cell-rule patch`` or ``yarn`` the measured alternatives to how a cell reads the field
+(:func:`~fabric_fenicsx.material.scatter.cell_laws`; default weakest),
+with ``--crack-band`` each cell's softening shortened to that of one segment (scale l / h). The
+meshes run side by side in ``--jobs`` processes; each writes
 OUT/strip-<family>-<size>.csv a row per pull as it ends, and a study run again resumes from
 them. Writes OUT/strip.json, OUT/strip.png and prints the distributions and their comparison.
 """
@@ -61,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: {len(configs)} meshes x ({args.seeds} seeds of {args.scatter} + no scatter), "
               f"{jobs} at a time, into {out}", flush=True)
     with multiprocessing.get_context("spawn").Pool(jobs) as pool:
-        setup = strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule)
+        setup = strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule,
+                                 crack_band=args.crack_band)
         pending = [pool.apply_async(strip.run_configuration, (f, h, args.scatter, seeds, str(paths[(f, h)]), setup))
                    for f, h in configs]
         for (f, h), job in zip(configs, pending):
@@ -71,7 +76,8 @@ def run(args: argparse.Namespace) -> int:
     tables = {c: strip.read_table(paths[c]) for c in configs}
     report = strip.summarise(tables)
     report.update(scatter=args.scatter, seeds=args.seeds,
-                  setup=strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule).__dict__,
+                  setup=strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule,
+                                         crack_band=args.crack_band).__dict__,
                   wall_time_s=time.perf_counter() - t0)
     (out / "strip.json").write_text(json.dumps(report, indent=1))
     strip.plot(tables, report, out / "strip.png")

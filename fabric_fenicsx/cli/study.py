@@ -66,8 +66,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scatter", default="weibull", help="strip: the scatter model (weibull or fibrils)")
     parser.add_argument("--sizes", default="0.002,0.001", help="strip: cell sizes in m (default 0.002,0.001)")
     parser.add_argument("--families", default="aligned,free", help="strip: mesh families (default aligned,free)")
-    parser.add_argument("--cell-rule", default="patch",
-                        help="strip: how a cell reads the segments it covers, patch or yarn (default patch)")
+    parser.add_argument("--cell-rule", default="weakest",
+                        help="strip: how a cell reads the segments it covers, weakest, patch or yarn (default weakest)")
+    parser.add_argument("--crack-band", action="store_true",
+                        help="strip: shorten each cell's softening to one segment's (scale l / h)")
     parser.add_argument("--shear-modulus", type=float, default=0.0,
                         help="strip: isotropic in-plane shear stiffness G (N/m, default 0: the thesis's membrane)")
     from fabric_fenicsx.cli._guarded import add_scheduler_argument

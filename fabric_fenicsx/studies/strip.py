@@ -38,7 +38,8 @@ class StripSetup:
     damping: float = 0.1
     hourglass: float = 0.05
     dt_safety: float = 0.8
-    cell_rule: str = "patch"     # how a cell reads the segments (material.scatter.cell_laws)
+    cell_rule: str = "weakest"   # how a cell reads the segments (material.scatter.cell_laws)
+    crack_band: bool = False     # softening scales x l / h (l = a warp segment, h = the cell's length)
     shear_modulus: float = 0.0  # N/m: isotropic in-plane shear (membrane.shear_modulus), 0 = the thesis's
     t_max: float = 0.0          # 0: until the strain reaches twice the warp's failure strain
 
@@ -133,7 +134,11 @@ class StripTest:
         """The cell laws (mu_crit, scale), each (n_points, 2), of ``scatter`` on this mesh."""
         from fabric_fenicsx.material.scatter import cell_laws
 
-        return cell_laws(scatter, self.fabric, 0.0, self.corners, rule=self.setup.cell_rule)
+        mu_crit, scale = cell_laws(scatter, self.fabric, 0.0, self.corners, rule=self.setup.cell_rule)
+        if self.setup.crack_band:   # the softening of a cell of length h spread as over one segment
+            length = np.ptp(self.corners[:, :, 0], axis=1)          # along the warp (x)
+            scale = scale * np.minimum(1.0, 2.0 * self.fabric.warp.w / length)[:, None]
+        return mu_crit, scale
 
     def pull(self, surrogate, laws=None) -> dict:
         """Pull the strip with the cell laws ``laws`` (None: the fabric's own law) to failure:

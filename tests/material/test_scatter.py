@@ -111,7 +111,7 @@ def test_fibril_segments_keep_the_critical_stretch_and_scale_the_softening():
     assert 0.03 < s.std() < 0.08                                # ~ sd(g(r)) / sqrt(326)
 
 
-def test_cells_read_the_weakest_segment_of_each_yarn_and_average_over_yarns():
+def test_the_patch_rule_reads_the_weakest_segment_of_each_yarn_and_averages_over_yarns():
     sc = StrengthScatter("weibull", seed=4)
     w1, w2 = 2 * FABRIC.warp.w, 2 * FABRIC.fill.w
     # a cell of 2 x 2 unit cells exactly: warp yarns a = 0, 1, segments b = 0, 1
@@ -119,15 +119,16 @@ def test_cells_read_the_weakest_segment_of_each_yarn_and_average_over_yarns():
     seg = {(a, b): sc.segment_laws(FABRIC, 0, [a], [b])[0][0] for a in (0, 1) for b in (0, 1)}
     weakest = (min(seg[0, 0], seg[0, 1]), min(seg[1, 0], seg[1, 1]))
     for samples in (4, 40):
-        mu, s = cell_laws(sc, FABRIC, 0.0, corners, samples_per_segment=samples)
+        mu, s = cell_laws(sc, FABRIC, 0.0, corners, samples_per_segment=samples, rule="patch")
         # each yarn weighs its share of the cell's sample grid: half, to within a grid line
         k = math.ceil(samples * math.hypot(2 * w1, 2 * w2) / min(w1, w2)) + 1
         assert mu[0, 0] == pytest.approx(0.5 * sum(weakest), abs=1.5 / k * abs(weakest[0] - weakest[1]))
         assert min(weakest) < mu[0, 0] < max(weakest)
     # a cell inside one segment reads that segment's law, whatever the mesh around it
     inside = np.array([[[0.1 * w1, 0.1 * w2], [0.4 * w1, 0.1 * w2], [0.5 * w1, 0.6 * w2], [0.1 * w1, 0.3 * w2]]])
-    mu_in, _ = cell_laws(sc, FABRIC, 0.0, inside)
-    assert mu_in[0, 0] == seg[0, 0]
+    for rule in ("weakest", "patch", "yarn"):
+        mu_in, _ = cell_laws(sc, FABRIC, 0.0, inside, rule=rule)
+        assert mu_in[0, 0] == seg[0, 0]
     # scatter "none": the fabric's law in every cell
     mu0, s0 = cell_laws(StrengthScatter("none"), FABRIC, 0.0, square_cells(0, 0, 1e-3, 3))
     assert np.all(mu0 == [FABRIC.warp.mu_crit, FABRIC.fill.mu_crit]) and np.all(s0 == 1.0)
@@ -169,7 +170,7 @@ def test_bad_scatter_settings_are_refused_with_the_key_named():
                                                 0, [0], [0])
 
 
-def test_the_yarn_rule_reads_only_the_yarn_through_the_cell_centre():
+def test_the_yarn_and_weakest_rules_read_the_centre_yarn_and_the_weakest_segment():
     sc = StrengthScatter("weibull", seed=4)
     w1, w2 = 2 * FABRIC.warp.w, 2 * FABRIC.fill.w
     # warp yarns 0 and 1 (y < w2 and y > w2), segments 0 and 1; the centre lies on yarn 1
@@ -177,5 +178,8 @@ def test_the_yarn_rule_reads_only_the_yarn_through_the_cell_centre():
     mu, _ = cell_laws(sc, FABRIC, 0.0, corners, rule="yarn")
     seg = sc.segment_laws(FABRIC, 0, [1, 1], [0, 1])[0]
     assert mu[0, 0] == min(seg)
+    weakest, _ = cell_laws(sc, FABRIC, 0.0, corners, rule="weakest")
+    every = sc.segment_laws(FABRIC, 0, [0, 0, 1, 1], [0, 1, 0, 1])[0]
+    assert weakest[0, 0] == min(every)
     with pytest.raises(ValueError, match="rule"):
         cell_laws(sc, FABRIC, 0.0, corners, rule="centre")

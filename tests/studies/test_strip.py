@@ -73,3 +73,15 @@ def test_bad_strip_options_stop_before_any_work(tmp_path):
     assert proc.returncode == 2
     assert "--scatter" in proc.stderr and "--sizes" in proc.stderr
     assert not (tmp_path / "s").exists()
+
+
+def test_the_crack_band_variant_shortens_every_cells_softening_to_one_segments():
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.material.scatter import StrengthScatter
+    from fabric_fenicsx.studies.strip import StripSetup, StripTest
+
+    fabric, scatter = zylon_as(), StrengthScatter("weibull", seed=2)
+    plain = StripTest(fabric, "aligned", 0.005).laws(scatter)
+    band = StripTest(fabric, "aligned", 0.005, StripSetup(crack_band=True)).laws(scatter)
+    assert np.array_equal(band[0], plain[0])
+    assert band[1] == pytest.approx(plain[1] * 2 * fabric.warp.w / 0.005, rel=1e-12)
