@@ -119,10 +119,9 @@ class Surrogate:
         they are solved: True (the tiles shipped with the package,
         :mod:`~fabric_fenicsx.surrogate.ship`), a folder of the same layout, or False; not read
         when ``cache_dir`` is False.
-    damage_range : None or the bounds of a strength scatter's field per yarn
-        (:class:`fabric_fenicsx.material.scatter.DamageRange`): the table then reaches the
-        highest failure strain and checks damage from the lowest critical stretch on. It only
-        grows by whole tiles of the same grid: every tile is the one without it.
+    damage_range : None or a strength scatter's bounds per yarn (:class:`~fabric_fenicsx.
+        material.scatter.DamageRange`): the table grows by whole tiles to the highest failure
+        strain (every tile as without it); each point checks damage from its own mu_crit.
     workers : processes for solving tiles (default: all cores).
     progress : show a progress bar while solving tiles.
     """
@@ -179,8 +178,8 @@ class Surrogate:
         P = self.order + 1
         self._safe = {"intact": np.zeros((self.nE, self.nE), bool),
                       "damaged": np.zeros((self.nE, self.nE), bool)}
-        # Cell-major, quantities last but the polynomial: one gather fetches every quantity a
-        # point asks for.
+        self._mu_top = {layer: np.full((self.nE, self.nE, 2), np.nan) for layer in self._safe}
+        # Cell-major, quantities last but the polynomial: one gather fetches a point's quantities.
         self._coef = {"intact": np.full((self.nE, self.nE, nq, P, P), np.nan),
                       "damaged": np.full((2, self.nE, self.nE, self.r_nodes, nq, P, P), np.nan)}
         self.built = {"intact": np.zeros((self.n_tiles,) * 2, bool),
@@ -332,6 +331,7 @@ class Surrogate:
         limit = (self.mu_safe - MU_MARGIN)[None, None, :, None, None]
         with np.errstate(invalid="ignore"):  # NaN beside unbuilt tiles counts as unsafe
             self._safe[layer][i0:i1 + 1, j0:j1 + 1] = np.all(mu < limit, axis=(0, 1, 2))
+        self._mu_top[layer][i0:i1 + 1, j0:j1 + 1] = np.moveaxis(mu.max(axis=(0, 1)), 0, -1)
 
     def build(self, layers=("intact", "damaged"), E1_range=None, E2_range=None) -> None:
         """Solve every tile of ``layers`` covering the strain ranges (default: the whole table)."""
@@ -525,10 +525,9 @@ class Surrogate:
         branch, alpha_i = alpha(mu_crit + (mu_i - mu_crit) / s)
         (:func:`fabric_fenicsx.material.fibril.crack_band_alpha`).
 
-        critical_stretch, softening_scale: None or per yarn a scalar or an array shaped like E1:
-        each point's own mu_i^crit and scale s_i > 0 of its softening branch (a strength
-        scatter's field, :func:`fabric_fenicsx.material.scatter.point_laws`; s multiplies
-        ``crack_band``), within the table's ``damage_range`` (checked).
+        critical_stretch, softening_scale: None or per yarn a scalar or an array like E1: each
+        point's own mu_i^crit and softening scale s_i > 0 (a strength scatter's field,
+        :func:`~fabric_fenicsx.material.scatter.point_laws`), within the ``damage_range``.
         """
         E1, E2, a1h, a2h, shape = self._inputs(E1, E2, alpha1_hist, alpha2_hist,
                                                 ("alpha1_hist", "alpha2_hist"))
@@ -544,8 +543,9 @@ class Surrogate:
         if critical_stretch is not None or softening_scale is not None:
             point_laws(self.fabric.damage, critical_stretch, softening_scale, shape, mu_crit, band,
                        self.mu_safe, self.mu_complete)
+        top = (self._mu_top["intact"], self._mu_top["damaged"]) if critical_stretch is not None else None
         P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol,
-                                                                             band, mu_crit)
+                                                                             band, mu_crit, top)
         if np.any(status == damage_kernel.NON_FINITE):
             k = int(np.flatnonzero(status == damage_kernel.NON_FINITE)[0])
             raise SurrogateError(
@@ -580,7 +580,7 @@ class Surrogate:
             out += [mu[:, 0].reshape(shape), mu[:, 1].reshape(shape)]
         return tuple(out)
 
-    def _update_points(self, E1, E2, a1, a2, tol, band, mu_crit):
+    def _update_points(self, E1, E2, a1, a2, tol, band, mu_crit, mu_top=None):
         """:func:`damage_kernel.update` of the points (crack-band scales ``band``, (n, 2),
         critical stretches ``mu_crit``, (n, 2)),
         building the tiles it asks for: (P, alpha, residual, status, number of points that
@@ -590,7 +590,8 @@ class Surrogate:
         residual, status = np.empty((n, 2)), np.empty(n, np.int8)
         iterated, waiting = damage_kernel.update(
             E1, E2, a1, a2, self._table(), self._spec(("P1", "P2")), self._spec(("mu1", "mu2")),
-            self._law, mu_crit, band, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status)
+            self._law, mu_crit, band, 2 * ALPHA_BROKEN, tol, P, alpha, residual, status, mu_top,
+            MU_MARGIN)
         if waiting:
             again = np.flatnonzero((status == damage_kernel.NEEDS_TILES)
                                    | (status == damage_kernel.NEEDS_DAMAGED_TILES))
@@ -600,7 +601,7 @@ class Surrogate:
             cells = self._cells(E1[growing], E2[growing])
             self._require("damaged", cells.i, cells.j)  # every r (and the intact layer)
             *parts, more = self._update_points(E1[again], E2[again], a1[again], a2[again], tol,
-                                               band[again], mu_crit[again])
+                                               band[again], mu_crit[again], mu_top)
             for whole, part in zip((P, alpha, residual, status), parts):
                 whole[again] = part
             iterated += more

@@ -134,7 +134,7 @@ def test_surrogate_update_reports_a_point_without_root_and_goes_on(monkeypatch):
     sur = Surrogate(MAX, cache_dir=False, progress=False)
     n = 3
 
-    def fake_update_points(E1, E2, a1, a2, tol, band, mu_crit):
+    def fake_update_points(E1, E2, a1, a2, tol, band, mu_crit, mu_top=None):
         P = np.full((n, 2), 1000.0)
         alpha = np.stack((a1, a2), axis=1) * np.array([0.5, 1.0])
         residual = np.zeros((n, 2))

@@ -114,7 +114,7 @@ NaN: a fault of the table, not of the point)."""
 
 @njit(cache=True, nogil=True)
 def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, band, floor, tol, P, alpha,
-           residual, status):
+           residual, status, mu_top=None, margin=0.0):
     """The constitutive update of n points: the new alpha (n, 2) from alpha^hist = (a1, a2)
     (Eq. 2-25 / A.12) and P1, P2 there into P (n, 2); per point ``status``: CONVERGED (damage
     unchanged, or its iteration converged), BRACKETED (converged on the iteration's guaranteed
@@ -123,7 +123,10 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, band, floor, to
     alpha, from a non-finite table stretch), NEEDS_TILES or NEEDS_DAMAGED_TILES (the point is
     not done). ``band`` (n, 2): each point's crack-band scale of the softening branch per yarn
     (:func:`band_alpha`; 1 = the law as it is); ``mu_crit`` (n, 2): each point's critical stretch per
-    yarn (the fabric's, or its strength scatter's). Every done point has 0 <= alpha <= alpha^hist.
+    yarn (the fabric's, or its strength scatter's). ``mu_top``: None, or per layer (intact,
+    damaged) the largest stretch per yarn of each table cell's nodes, (nE, nE, 2): a point whose
+    cell stays ``margin`` below its own critical stretches takes no iteration (the table's safe
+    map is made for the field's lowest critical stretch). Every done point has 0 <= alpha <= alpha^hist.
     Returns the numbers of points that iterated and that are not done. Only the points whose cell can reach mu_crit (flag 1 of interp_kernel.lookup) look
     up their stretches. table: :func:`interp_kernel.lookup`'s; spec_P, spec_mu: its specs of
     (P1, P2) and (mu1, mu2)."""
@@ -143,6 +146,11 @@ def update(E1, E2, a1, a2, table, spec_P, spec_mu, law, mu_crit, band, floor, to
             continue
         if flag[n] == 0:
             continue
+        if mu_top is not None:
+            top = mu_top[0] if (a1[n] >= 1.0 and a2[n] >= 1.0) else mu_top[1]
+            _, _, _, _, _, i, j = interp_kernel._locate(E1[n], E2[n], 1.0, 1.0, table)
+            if top[i, j, 0] < mu_crit[n, 0] - margin and top[i, j, 1] < mu_crit[n, 1] - margin:
+                continue
         hist[0], hist[1] = a1[n], a2[n]
         point = (a1[n], a2[n], law, mu_crit[n], table, spec_mu, E1[n:n + 1], E2[n:n + 1], x1, x2, mu,
                  one, band[n])
