@@ -291,16 +291,35 @@ def cell_laws(scatter: StrengthScatter, fabric, angle_deg: float, corners: np.nd
         mu = np.array([fabric.warp.mu_crit, fabric.fill.mu_crit])
         return np.broadcast_to(mu, (nc, 2)).copy(), np.ones((nc, 2))
     spacing = (2.0 * fabric.warp.w, 2.0 * fabric.fill.w)
-    extent = np.linalg.norm(corners[:, :, None, :] - corners[:, None, :, :], axis=-1).max()
-    k = max(2, int(math.ceil(samples_per_segment * extent / min(spacing))) + 1)
+    # a sample grid per cell fine enough for its own size; cells of one grid size go together,
+    # a bounded number of samples at a time
+    extent = np.linalg.norm(corners[:, :, None, :] - corners[:, None, :, :], axis=-1).max(axis=(1, 2))
+    ks = np.maximum(2, np.ceil(samples_per_segment * extent / min(spacing)).astype(np.int64) + 1)
+    mu_out, s_out = np.empty((nc, 2)), np.empty((nc, 2))
+    for k in np.unique(ks):
+        chosen = np.flatnonzero(ks == k)
+        per_chunk = max(1, _MAX_SAMPLES // int(k * k))
+        for first in range(0, chosen.size, per_chunk):
+            part = chosen[first:first + per_chunk]
+            mu_out[part], s_out[part] = _cell_laws_on_grid(scatter, fabric, angle_deg, corners[part],
+                                                           int(k), spacing, rule)
+    return mu_out, s_out
+
+
+_MAX_SAMPLES = 2_000_000
+"""Sample points of :func:`cell_laws` handled at once (memory: about 100 bytes each)."""
+
+
+def _cell_laws_on_grid(scatter, fabric, angle_deg, corners, k, spacing, rule):
+    """:func:`cell_laws` of cells sampled on a k x k grid of their bilinear map."""
+    nc = corners.shape[0]
     t = (np.arange(k) + 0.5) / k
     u, v = np.meshgrid(t, t, indexing="ij")
     u, v = u.ravel(), v.ravel()
     shape = np.stack([(1 - u) * (1 - v), u * (1 - v), u * v, (1 - u) * v])     # (4, k*k)
     points = np.einsum("qs,cqx->csx", shape, corners).reshape(-1, 2)           # (nc*k*k, 2)
     cell = np.repeat(np.arange(nc), k * k)
-    half = ExponentialDamage(fabric.damage.beta, fabric.damage.width) \
-        if isinstance(fabric.damage, ExponentialDamage) else None
+    exp_law = fabric.damage if isinstance(fabric.damage, ExponentialDamage) else None
     mu_out, s_out = np.empty((nc, 2)), np.empty((nc, 2))
     centres = segment_index(corners.mean(axis=1), angle_deg, spacing)
     for family, (a, b) in enumerate(segment_index(points, angle_deg, spacing)):
@@ -310,19 +329,20 @@ def cell_laws(scatter: StrengthScatter, fabric, angle_deg: float, corners: np.nd
         else:
             cell_f = cell
         pairs, inverse = np.unique(np.stack([a, b], 1), axis=0, return_inverse=True)
+        inverse = inverse.ravel()
         mu_seg, s_seg = scatter.segment_laws(fabric, family, pairs[:, 0], pairs[:, 1])
-        mu_c0 = fabric.yarns[family].mu_crit
-        span_half = _half_damage_offset(half, fabric.damage, mu_c0)
-        strength = (mu_seg + s_seg * span_half)[inverse.ravel()]
-        # per (cell, yarn): the weakest sample's segment; weight = its number of samples
-        group = np.zeros_like(a) if rule == "weakest" else a   # "weakest": one group per cell
+        span_half = _half_damage_offset(exp_law, fabric.damage, fabric.yarns[family].mu_crit)
+        strength = (mu_seg + s_seg * span_half)[inverse]
+        # per (cell, yarn), or per cell for "weakest": the weakest sample's segment, weighted by
+        # the group's number of samples
+        group = np.zeros_like(a) if rule == "weakest" else a
         order = np.lexsort((strength, group, cell_f))
-        key_cell, key_yarn = cell_f[order], group[order]
-        start = np.flatnonzero(np.r_[True, (np.diff(key_cell) != 0) | (np.diff(key_yarn) != 0)])
+        key_cell, key_group = cell_f[order], group[order]
+        start = np.flatnonzero(np.r_[True, (np.diff(key_cell) != 0) | (np.diff(key_group) != 0)])
         weakest = order[start]                    # first of each group: the lowest strength
         count = np.diff(np.r_[start, order.size])
         group_cell = cell_f[weakest]
-        seg = inverse.ravel()[weakest]
+        seg = inverse[weakest]
         total = np.bincount(group_cell, weights=count, minlength=nc)
         mu_out[:, family] = np.bincount(group_cell, weights=count * mu_seg[seg], minlength=nc) / total
         s_out[:, family] = np.bincount(group_cell, weights=count * s_seg[seg], minlength=nc) / total
