@@ -167,7 +167,8 @@ class ImpactSimulation:
         self.dt_initial = self.dt
         self.dt_changes: list[DtChange] = []
 
-        fields = [f for f in sc.output.fields if f not in SCATTER_FIELDS or self.laws is not None]
+        with_field = self.laws is not None and "mu_crit1" in self.material.point_fields()
+        fields = [f for f in sc.output.fields if f not in SCATTER_FIELDS or with_field]
         self.output = ImpactOutput(self.out_dir, m, fields if sc.output.xdmf_interval > 0 else [],
                                    comm, HISTORY_COLUMNS, scene=sc)
         out = sc.output
