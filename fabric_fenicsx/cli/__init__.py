@@ -1,4 +1,4 @@
-"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence | divergence | ensemble | study ...``.
+"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence | divergence | ensemble | v50 | study ...``.
 
 Each subcommand's module is imported only when it runs, so the material-point scenes
 never import DOLFINx.
@@ -24,6 +24,8 @@ SUBCOMMANDS = {
                    "twin runs: how fast a scene amplifies a round-off change of the impact velocity"),
     "ensemble": ("fabric_fenicsx.cli.ensemble",
                  "a scene run N times with round-off-sized changes: its answer as mean, interval and range"),
+    "v50": ("fabric_fenicsx.cli.v50",
+            "the ballistic limit as a statistic: sequential runs, probit V50 with its interval, Lambert-Jonas"),
     "study": ("fabric_fenicsx.cli.study",
               "the thesis's chapter 4: Tables 4-6, friction, fillet, ballistic limit, validation report"),
 }

@@ -1,0 +1,175 @@
+"""``fabric-fenicsx v50 SCENE``: the ballistic limit as ballistic testing estimates it
+(:mod:`fabric_fenicsx.studies.v50`).
+
+Runs the scene at velocities chosen by Neyer's sequential D-optimal design, ``--jobs`` runs at a
+time (each a new member: a seed of the strength scatter from ``--seeds``, or without a scatter
+the velocity changed by i x 1e-12), fits the probability of perforation with a probit model and
+stops when V50's 95 % interval is no wider than ``--ci`` m/s or after ``--max-runs`` runs. Prints
+V50, V10, V90 and sigma with their profile-likelihood intervals, the observed fraction per
+velocity bin, and the Lambert-Jonas fit of the perforating runs' residual velocities. Writes
+OUT/v50.csv (a row as each run ends, in run order after each batch), OUT/v50.json, OUT/v50.png
+and each run's output (OUT/run_<i>). Run again into the same OUT, it reuses the stored runs and
+goes on where it stopped (a larger --max-runs or a smaller --ci goes further).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from pathlib import Path
+
+PROG = "fabric-fenicsx v50"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="scene TOML file (e.g. demos/scenes/y90.toml)")
+    parser.add_argument("--out", default=None, help="output folder (default out/v50-<scene name>)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override a scene key of every run (repeatable)")
+    parser.add_argument("--ci", type=float, default=2.0,
+                        help="stop when V50's 95 %% interval is no wider than this (m/s, default 2)")
+    parser.add_argument("--max-runs", type=int, default=40, help="stop after this many runs (default 40)")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="runs at the same time, chosen together (default: the cores, or the cluster's "
+                             "worker threads)")
+    parser.add_argument("--bracket", default="20,60", metavar="LO,HI",
+                        help="where the design starts (m/s, default 20,60); it widens if it must")
+    parser.add_argument("--resolution", type=float, default=0.01,
+                        help="velocities are rounded to this (m/s, default 0.01)")
+    parser.add_argument("--seeds", type=int, default=1, metavar="FIRST",
+                        help="with a strength scatter, run i is the fabric of seed FIRST + i (default 1)")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines")
+    from fabric_fenicsx.cli._guarded import add_scheduler_argument
+
+    add_scheduler_argument(parser, "runs")
+
+
+def _problems(args) -> list[str]:
+    from fabric_fenicsx.studies.executor import scheduler_problem
+
+    problems = []
+    try:
+        lo, hi = (float(x) for x in args.bracket.split(","))
+        if not 0 < lo < hi:
+            raise ValueError
+    except ValueError:
+        problems.append(f"--bracket must be LO,HI with 0 < LO < HI (m/s), got {args.bracket!r}")
+    if not args.ci > 0:
+        problems.append(f"--ci must be a width > 0 m/s, got {args.ci}")
+    if args.max_runs < 2:
+        problems.append(f"--max-runs must be at least 2 (a held and a perforating run), got {args.max_runs}")
+    if args.jobs is not None and args.jobs < 1:
+        problems.append(f"--jobs must be at least 1, got {args.jobs}")
+    if not 0 < args.resolution <= 1.0:
+        problems.append(f"--resolution must lie in (0, 1] m/s, got {args.resolution}")
+    if args.seeds < 0:
+        problems.append(f"--seeds must be a seed >= 0, got {args.seeds}")
+    if scheduler_problem(args.scheduler):
+        problems.append(scheduler_problem(args.scheduler))
+    return problems
+
+
+def run(args: argparse.Namespace) -> int:
+    from fabric_fenicsx.cli.impact import _size
+    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+
+    if _size() > 1:
+        print(f"{PROG}: the runs are processes of their own; run it without mpirun", file=sys.stderr)
+        return 2
+    problems = _problems(args)
+    if problems:
+        print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
+        return 2
+    try:
+        scene = load_scene(args.scene, args.overrides)
+        out = Path(args.out or Path("out") / f"v50-{scene.name}")
+        check_output_dir(str(out))
+    except InputError as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    from fabric_fenicsx.cli._guarded import guarded
+
+    return guarded(PROG, out, "v50", scene.name, lambda: _open(args, scene, out), "its complete runs are reused")
+
+
+def _open(args, scene, out: Path) -> int:
+    from fabric_fenicsx.studies.executor import make_executor
+
+    with make_executor(args.scheduler) as executor:
+        executor.check_shared(out, [args.scene, *([scene.fabric.file] if scene.fabric.file else [])])
+        return _estimate(args, scene, out, executor)
+
+
+def _write_table(path: Path, rows) -> None:
+    from fabric_fenicsx.studies.runpool import write_atomic
+    from fabric_fenicsx.studies.v50 import COLUMNS
+
+    lines = [",".join(COLUMNS)]
+    for r in sorted(rows, key=lambda r: r["run"]):
+        lines.append(",".join(_cell(r.get(c)) for c in COLUMNS))
+    write_atomic(path, "\n".join(lines) + "\n")
+
+
+def _cell(x) -> str:
+    if x is None:
+        return ""
+    text = repr(x) if isinstance(x, float) else str(x)
+    return f'"{text}"' if "," in text or '"' in text else text
+
+
+def _estimate(args, scene, out: Path, executor) -> int:
+    from fabric_fenicsx.studies import v50
+    from fabric_fenicsx.studies.chapter4 import THESIS, VELOCITIES
+    from fabric_fenicsx.studies.neyer import NeyerDesign
+    from fabric_fenicsx.studies.runpool import write_atomic
+
+    say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
+    lo, hi = (float(x) for x in args.bracket.split(","))
+    design = NeyerDesign(lo, hi, resolution=args.resolution)
+    jobs = args.jobs or executor.slots
+    first_seed = None if scene.material.scatter == "none" else args.seeds
+    out.mkdir(parents=True, exist_ok=True)
+    table = out / "v50.csv"
+    _write_table(table, [])
+    members = ("round-off twins (velocity x (1 + i 1e-12))" if first_seed is None
+               else f"fabrics of seeds {first_seed}, {first_seed + 1}, ... ({scene.material.scatter} scatter)")
+    say(f"{PROG}: {scene.name}, Neyer's D-optimal design from {lo:g}-{hi:g} m/s, {jobs} runs at a time, "
+        f"until V50's 95 % interval is within {args.ci:g} m/s or {args.max_runs} runs; members are {members}")
+    t0 = time.monotonic()
+
+    def on_run(row):
+        with open(table, "a", newline="") as f:
+            csv.writer(f).writerow([row.get(c, "") if row.get(c) is not None else "" for c in v50.COLUMNS])
+        extra = (f", residual {row['residual_velocity']:.2f} m/s" if row["outcome"] == "perforated" else "")
+        say(f"run {row['run']} at {row['velocity']:.2f} m/s: {row['outcome']}{extra}"
+            + (f" ({row['error']})" if "error" in row else f" ({row.get('end_reason')}, {row.get('wall_time_s') or 0:.0f} s)"))
+
+    def on_batch(rows, fit):
+        _write_table(table, rows)
+        c = {k: sum(r["outcome"] == k for r in rows) for k in ("held", "perforated")}
+        state = ("no fit yet" if fit is None else
+                 f"V50 {fit.v50:.2f} m/s, 95 % {v50._ci(fit.v50_ci)}, width {fit.width:.2f} m/s")
+        say(f"v50: {len(rows)} runs ({c['held']} held, {c['perforated']} perforated): {state}; "
+            f"{time.monotonic() - t0:.0f} s elapsed")
+
+    result = v50.estimate(args.scene, args.overrides, out, design, ci=args.ci, max_runs=args.max_runs, jobs=jobs,
+                          first_seed=first_seed, executor=executor, on_run=on_run, on_batch=on_batch)
+    rows = result["rows"]
+    _write_table(table, rows)
+    rep = v50.report(rows, result["stop"], scene.name)
+    rep.update(scene_file=str(args.scene), overrides=list(args.overrides), ci_target=args.ci,
+               max_runs=args.max_runs, jobs=jobs, start_bracket=[lo, hi], first_seed=first_seed,
+               wall_time_s=time.monotonic() - t0)
+    write_atomic(out / "v50.json", json.dumps(rep, indent=1))
+    thesis = THESIS.get(scene.name.upper(), {})
+    reference = {}
+    for key, label in (("residual", "thesis (Table 4-6)"), ("residual_experiment", "experiment (Table 4)")):
+        pts = [(v, r) for v, r in zip(VELOCITIES, thesis.get(key, ())) if r is not None]
+        if pts:
+            reference[label] = tuple(zip(*pts))
+    v50.plot(rep, rows, out / "v50.png", title=f"{scene.name}: {len(rows)} runs", reference=reference)
+    print(v50.format_report(rep))
+    print(f"report in {out / 'v50.json'}, runs in {table}, plot {out / 'v50.png'}")
+    return 0
