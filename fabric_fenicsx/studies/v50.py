@@ -281,9 +281,13 @@ def plot(rep: dict, rows: list[dict], path, title: str = "", reference: dict | N
     bx.plot([r["velocity"] for r in through], [r["residual_velocity"] for r in through], "ko", ms=4, label="runs")
     lj = rep["lambert_jonas"]
     if lj is not None:
-        g = np.linspace(min(lj["vbl"], grid[0]), max(grid[-1], 130.0 if reference else grid[-1]), 200)
+        top = max(r["velocity"] for r in through)
+        g = np.linspace(min(lj["vbl"], grid[0]), top, 200)
         bx.plot(g, residual_velocity(g, lj["a"], lj["p"], lj["vbl"]), "b-",
-                label=f"Lambert-Jonas: Vbl {lj['vbl']:.1f} m/s, p {lj['p']:.2f}")
+                label=f"Lambert-Jonas: Vbl {lj['vbl']:.1f} m/s, a {lj['a']:.2f}, p {lj['p']:.2f}")
+        if reference:                                  # beyond the runs: an extrapolation, dashed
+            g = np.linspace(top, 130.0, 100)
+            bx.plot(g, residual_velocity(g, lj["a"], lj["p"], lj["vbl"]), "b--", lw=0.8)
     for (label, (rv, rr)), marker in zip((reference or {}).items(), ("^", "v", "D")):
         bx.plot(rv, rr, marker, mfc="none", label=label)
     bx.set_xlabel("impact velocity (m/s)")
