@@ -17,7 +17,8 @@ would tell; reported, not counted, as are failed runs).
 After each batch the counted outcomes are fitted (:func:`~fabric_fenicsx.studies.probit.fit_probit`);
 the estimate stops when V50's 95 % interval is no wider than ``ci`` m/s, at ``max_runs``
 runs, when the design ends (a sharp limit, or no bracket between the floor and the ceiling), or
-when a batch counts no outcome. The design is a pure function of the shots so far and batches
+when more than half of four or more runs counted no outcome (undecided or failed: the scene's
+``run.t_end`` is too short for it, or it fails). The design is a pure function of the shots so far and batches
 run to their end before the next is chosen, so a resumed estimate chooses the same runs and
 reuses the stored ones (:func:`~fabric_fenicsx.studies.runpool.run_all`).
 """
@@ -126,9 +127,10 @@ def estimate(scene: str, overrides, out_dir, design: NeyerDesign, ci: float = 2.
                          intervals="v50") if counted else None
         if on_batch is not None:
             on_batch(rows, fit)
-        if not any(new[i]["outcome"] in ("perforated", "held") for i in new):
-            return {"rows": rows, "stop": "a batch of runs counted no outcome (undecided or failed): see their "
-                                          "end_reason and error; an undecided run needs a longer run.t_end"}
+        lost = len(rows) - len(counted)
+        if len(rows) >= 4 and 2 * lost > len(rows):
+            return {"rows": rows, "stop": f"{lost} of {len(rows)} runs counted no outcome (undecided or failed): "
+                                          "see their end_reason and error; an undecided run needs a longer run.t_end"}
         if fit is not None and fit.width <= ci and not _violations(counted):
             return {"rows": rows, "stop": f"V50's 95 % interval ({fit.width:.2f} m/s) is within --ci {ci:g} m/s"}
 
