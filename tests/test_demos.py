@@ -60,6 +60,27 @@ def _png(path):
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", path
 
 
+def check_ballistic_limit(out, stdout):
+    """The stand-in's 40 shots (V50 = 38 m/s, sigma = 6.5 m/s, Lambert-Jonas 0.95, 2, 30 m/s):
+    every 95 % interval of the report covers its true value (a fixed seed: this draw), V10 and
+    V90 lie 1.2816 sigma either side of V50, the design went through its three phases, and the
+    binned fractions rise from none to most."""
+    import json
+    rep = json.loads((out / "v50.json").read_text())
+    p, lj = rep["probit"], rep["lambert_jonas"]
+    for name, true in (("v50", 38.0), ("sigma", 6.5), ("v10", 38.0 - 1.2816 * 6.5), ("v90", 38.0 + 1.2816 * 6.5)):
+        lo, hi = p[f"{name}_ci"]
+        assert lo < true < hi, (name, lo, true, hi)
+    assert p["v90"] - p["v50"] == pytest.approx(1.2815515655446004 * p["sigma"])
+    for name, true in (("a", 0.95), ("p", 2.0), ("vbl", 30.0)):
+        lo, hi = lj[f"{name}_ci"]
+        assert lo <= true <= hi, (name, lo, true, hi)
+    assert rep["runs"] == 40 and rep["answer"] == "v50" and rep["monotone"]
+    assert rep["bins"][0]["fraction"] < 0.2 and rep["bins"][-1]["fraction"] > 0.8
+    assert "d-optimal" in stdout and "V50" in stdout
+    _png(out / "v50.png")
+
+
 def check_impact(out, stdout):
     """Y90 at 123.69 m/s on the coarse 4 mm mesh: a perforation (0 < v_res < V0); the absorbed
     energy is the projectile's loss of kinetic energy (37.1 g); the projectile's momentum loss
@@ -194,4 +215,4 @@ def check_scatter(out, stdout):
 
 CHECKS = {"demo_scatter": check_scatter, "demo_weak_form": check_weak_form, "demo_explicit_loop": check_explicit_loop,
           "demo_impact": check_impact, "demo_static": check_static, "demo_fibril": check_fibril,
-          "demo_smith": check_smith}
+          "demo_smith": check_smith, "demo_ballistic_limit": check_ballistic_limit}

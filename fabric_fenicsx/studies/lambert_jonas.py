@@ -31,7 +31,8 @@ def residual_velocity(v, a: float, p: float, vbl: float) -> np.ndarray:
 @dataclass(frozen=True)
 class LambertJonasFit:
     """Fitted a, p, Vbl (m/s) with 95 % bootstrap intervals (low, high), the rms residual (m/s),
-    the number of perforating runs and of bootstrap refits that converged."""
+    the number of perforating runs and of bootstrap refits, and the parameters the fit left on a
+    bound of their range (``at_bound``: not determined by these runs)."""
 
     a: float
     p: float
@@ -42,20 +43,23 @@ class LambertJonasFit:
     rms: float
     n: int
     resamples: int
+    at_bound: tuple = ()
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
 def _fit(v, vr, vbl_max: float, start=None):
-    """Least squares from three starts (or from ``start`` alone, a bootstrap refit from the fit)."""
+    """Least squares from three starts (and ``start``: a bootstrap refit also starts from the
+    fit), the best of them: one start alone can stay on a flat ridge (Vbl -> 0 with p large)."""
     from scipy.optimize import least_squares
 
     def residuals(x):
         return residual_velocity(v, *x) - vr
 
-    starts = ([(0.95, 2.0, 0.5 * vbl_max), (0.9, 3.0, 0.9 * vbl_max), (0.99, 1.5, 0.2 * vbl_max)] if start is None
-              else [(start[0], start[1], min(start[2], vbl_max))])
+    starts = [(0.95, 2.0, 0.5 * vbl_max), (0.9, 3.0, 0.9 * vbl_max), (0.99, 1.5, 0.2 * vbl_max)]
+    if start is not None:
+        starts.append((start[0], start[1], min(start[2], vbl_max)))
     best = None
     for a0, p0, b0 in starts:
         r = least_squares(residuals, (a0, p0, b0), bounds=((1e-3, P_BOUNDS[0], 0.0), (A_MAX, P_BOUNDS[1], vbl_max)),
@@ -88,6 +92,9 @@ def fit_lambert_jonas(v, vr, resamples: int = 400, seed: int = 0) -> LambertJona
         boot.append(_fit(v[i], vr[i], float(v[i].min()), start=x)[0])
     boot = np.array(boot).reshape(-1, 3)
     lo, hi = (np.percentile(boot, (2.5, 97.5), axis=0) if len(boot) else (np.full(3, np.nan),) * 2)
-    return LambertJonasFit(a=float(x[0]), p=float(x[1]), vbl=float(x[2]),
+    bounds = ((1e-3, A_MAX), P_BOUNDS, (0.0, float(v.min())))
+    at_bound = tuple(name for name, value, (lo, hi) in zip(("a", "p", "vbl"), x, bounds)
+                     if min(abs(value - lo), abs(value - hi)) <= 1e-6 * max(abs(hi), 1.0))
+    return LambertJonasFit(a=float(x[0]), p=float(x[1]), vbl=float(x[2]), at_bound=at_bound,
                            a_ci=(float(lo[0]), float(hi[0])), p_ci=(float(lo[1]), float(hi[1])),
                            vbl_ci=(float(lo[2]), float(hi[2])), rms=rms, n=int(v.size), resamples=len(boot))

@@ -230,7 +230,7 @@ def format_report(rep: dict) -> str:
     lines += [f"  {b['lo']:7.2f}-{b['hi']:7.2f} m/s: {b['perforated']}/{b['n']} perforated "
               f"({100 * b['fraction']:.0f} %, 95 % {100 * b['ci'][0]:.0f}-{100 * b['ci'][1]:.0f} %)" for b in rep["bins"]]
     for kind, m in rep["modes"].items():
-        if m["n"]:
+        if m["n"] and m["removed_cells"] is not None:
             lines.append(f"{kind:>10}: {m['n']} runs at {m['velocity'][0]:.2f}-{m['velocity'][1]:.2f} m/s, mean "
                          f"{_fmt(m['removed_cells'], 1, '')} cells removed, first damage "
                          f"{_fmt(m['damage_onset_radius'], 1e3, ' mm')} and farthest {_fmt(m['damage_extent_radius'], 1e3, ' mm')} "
@@ -239,7 +239,8 @@ def format_report(rep: dict) -> str:
     if lj is not None:
         lines.append(f"Lambert-Jonas: a {lj['a']:.3f} {_ci(lj['a_ci'])}, p {lj['p']:.2f} {_ci(lj['p_ci'])}, "
                      f"Vbl {lj['vbl']:.2f} m/s {_ci(lj['vbl_ci'])} (bootstrap), rms {lj['rms']:.2f} m/s, "
-                     f"{lj['n']} runs")
+                     f"{lj['n']} runs" + (f"; at a bound of its range, not determined by these runs: "
+                                          f"{', '.join(lj['at_bound'])}" if lj["at_bound"] else ""))
     else:
         lines.append(f"Lambert-Jonas: not fitted ({rep['lambert_jonas_error']})")
     return "\n".join(lines)
