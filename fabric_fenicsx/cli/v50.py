@@ -103,20 +103,25 @@ def _open(args, scene, out: Path) -> int:
 
 
 def _write_table(path: Path, rows) -> None:
+    """v50.csv with ``rows`` in run order, written atomically (the rows appended as each run ended
+    are replaced by the same rows sorted)."""
+    import io
+
     from fabric_fenicsx.studies.runpool import write_atomic
     from fabric_fenicsx.studies.v50 import COLUMNS
 
-    lines = [",".join(COLUMNS)]
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(COLUMNS)
     for r in sorted(rows, key=lambda r: r["run"]):
-        lines.append(",".join(_cell(r.get(c)) for c in COLUMNS))
-    write_atomic(path, "\n".join(lines) + "\n")
+        writer.writerow(_cells(r))
+    write_atomic(path, text.getvalue())
 
 
-def _cell(x) -> str:
-    if x is None:
-        return ""
-    text = repr(x) if isinstance(x, float) else str(x)
-    return f'"{text}"' if "," in text or '"' in text else text
+def _cells(row: dict) -> list:
+    from fabric_fenicsx.studies.v50 import COLUMNS
+
+    return ["" if row.get(c) is None else row[c] for c in COLUMNS]
 
 
 def _estimate(args, scene, out: Path, executor) -> int:
@@ -141,7 +146,7 @@ def _estimate(args, scene, out: Path, executor) -> int:
 
     def on_run(row):
         with open(table, "a", newline="") as f:
-            csv.writer(f).writerow([row.get(c, "") if row.get(c) is not None else "" for c in v50.COLUMNS])
+            csv.writer(f, lineterminator="\n").writerow(_cells(row))
         extra = (f", residual {row['residual_velocity']:.2f} m/s" if row["outcome"] == "perforated" else "")
         say(f"run {row['run']} at {row['velocity']:.2f} m/s: {row['outcome']}{extra}"
             + (f" ({row['error']})" if "error" in row else f" ({row.get('end_reason')}, {row.get('wall_time_s') or 0:.0f} s)"))
