@@ -46,4 +46,4 @@ print(v50.format_report(rep))
 print(f"true: V50 {TRUE_V50} m/s, sigma {TRUE_SIGMA} m/s, V10 {TRUE_V50 - 1.2816 * TRUE_SIGMA:.2f} m/s, "
       f"V90 {TRUE_V50 + 1.2816 * TRUE_SIGMA:.2f} m/s; Lambert-Jonas a {TRUE_LJ[0]}, p {TRUE_LJ[1]}, "
       f"Vbl {TRUE_LJ[2]} m/s")
-print(f"phases: " + ", ".join(f"{p} {sum(r['phase'] == p for r in rows)}" for p in ("bracket", "overlap", "d-optimal")))
+print("phases: " + ", ".join(f"{p} {sum(r['phase'] == p for r in rows)}" for p in ("bracket", "overlap", "d-optimal")))

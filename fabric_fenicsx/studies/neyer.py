@@ -67,8 +67,10 @@ class NeyerDesign:
         return self.ceiling if self.ceiling is not None else 4.0 * self.hi
 
     def phase(self, shots) -> str:
-        """``bracket``, ``overlap``, ``d-optimal``, or ``sharp`` (done: no overlap in a gap below the
-        resolution) / ``unbracketed`` (done: perforates at the floor or holds at the ceiling)."""
+        """``bracket``, ``overlap``, ``d-optimal``, or ``sharp`` (done: no overlap in a gap of at most
+        the resolution between the fastest hold and the slowest perforation; both outcomes at one
+        velocity are ``overlap``) / ``unbracketed`` (done: perforates at the floor or holds at the
+        ceiling)."""
         from fabric_fenicsx.studies.probit import separation
 
         done = [s for s in shots if s.perforated is not None]
@@ -83,7 +85,8 @@ class NeyerDesign:
         gap = separation([s.velocity for s in done], [s.perforated for s in done])
         if gap is None:
             return "d-optimal"
-        return "sharp" if gap[1] - gap[0] <= self.resolution else "overlap"
+        # a hold and a perforation at one velocity is no sharp limit: the design goes on around it
+        return "sharp" if 0.0 < gap[1] - gap[0] <= self.resolution else "overlap"
 
     def next(self, shots, k: int = 1) -> list[float]:
         """The next ``k`` velocities after ``shots`` (a list of :class:`Shot`, those still running

@@ -25,7 +25,6 @@ reuses the stored ones (:func:`~fabric_fenicsx.studies.runpool.run_all`).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 

@@ -102,6 +102,9 @@ def test_the_design_brackets_then_splits_the_gap_then_spreads_around_v50():
     assert design.phase(gap) == "overlap" and design.next(gap, 1) == [40.0]
     assert design.phase([Shot(39.0, False), Shot(39.005, True)]) == "sharp"
     assert design.next([Shot(39.0, False), Shot(39.005, True)]) == []
+    both = [Shot(20.0, False), Shot(39.0, False), Shot(39.0, True), Shot(60.0, True)]
+    assert design.phase(both) == "overlap"                # one velocity, both outcomes: not sharp
+    assert all(abs(v - 39.0) > 1.0 for v in design.next(both, 2))
     assert design.phase([Shot(1.0, True)]) == "unbracketed"
     mixed = [Shot(v, o) for v, o in [(35, False), (38, True), (41, False), (44, True), (37, False), (42, True)]]
     assert design.phase(mixed) == "d-optimal"

@@ -6,7 +6,6 @@ import math
 import sys
 from pathlib import Path
 
-import pytest
 
 from fabric_fenicsx.studies import runpool
 from fabric_fenicsx.studies.v50 import member_run, outcome
