@@ -36,8 +36,8 @@ COLUMNS = ("run", "seed", "velocity", "outcome", "residual_velocity", "absorbed_
            "damage_onset_radius", "damage_extent_radius", "end_reason", "phase", "wall_time_s", "error")
 """Columns of v50.csv, one row per run (SI units: m/s, J, m). How the fabric failed, beside the
 outcome: the cells removed, the distance from the impact point of the first damaged cell and of
-the farthest one (a hole at the projectile's face stays within its radius; a tear runs along
-the yarns beyond it)."""
+the farthest one (a hole at the projectile's face keeps the damage within a few cells of its
+edge; a tear runs along the yarns towards the clamps)."""
 
 MODE_QUANTITIES = ("removed_cells", "damage_onset_radius", "damage_extent_radius", "absorbed_energy")
 """Per-run quantities whose mean :func:`report` gives for the held and the perforating runs."""
