@@ -32,9 +32,11 @@ from fabric_fenicsx.studies.neyer import NeyerDesign, Shot
 
 __all__ = ["COLUMNS", "TWIN_STEP", "outcome", "member_run", "estimate", "report", "format_report", "plot"]
 
-COLUMNS = ("run", "seed", "velocity", "outcome", "residual_velocity", "absorbed_energy", "removed_cells",
-           "damage_onset_radius", "damage_extent_radius", "end_reason", "phase", "wall_time_s", "error")
-"""Columns of v50.csv, one row per run (SI units: m/s, J, m). How the fabric failed, beside the
+COLUMNS = ("run", "seed", "velocity", "outcome", "residual_velocity", "absorbed_energy", "viscous_dissipation",
+           "removed_cells", "damage_onset_radius", "damage_extent_radius", "end_reason", "phase", "wall_time_s",
+           "error")
+"""Columns of v50.csv, one row per run (SI units: m/s, J, m); the viscous damping's share of the
+absorbed energy is booked with it. How the fabric failed, beside the
 outcome: the cells removed, the distance from the impact point of the first damaged cell and of
 the farthest one (a hole at the projectile's face keeps the damage within a few cells of its
 edge; a tear runs along the yarns towards the clamps)."""
@@ -71,15 +73,16 @@ def member_run(scene: str, overrides, i: int, v: float, first_seed: int | None):
 
 
 def _row(i: int, v: float, seed, phase: str, summary: dict) -> dict:
+    """Run i's row: an ensemble member's row (:func:`~fabric_fenicsx.studies.ensemble.member_row`)
+    with the outcome, the design's phase and the damage's extent."""
+    from fabric_fenicsx.studies.ensemble import member_row
+
     row = {"run": i, "seed": seed, "velocity": v, "outcome": outcome(summary), "phase": phase}
     if "error" in summary:
         return {**row, "error": summary["error"]}
-    return {**row, "residual_velocity": summary.get("residual_velocity"),
-            "absorbed_energy": summary.get("absorbed_energy"),
-            "removed_cells": (summary.get("deleted_cells") or 0) + (summary.get("eroded_cells") or 0),
-            "damage_onset_radius": summary.get("damage_onset_radius"),
-            "damage_extent_radius": summary.get("damage_extent_radius"),
-            "end_reason": summary.get("end_reason"), "wall_time_s": summary.get("wall_time_s")}
+    member = member_row(i, v, summary)
+    del member["k"]
+    return {**member, **row, "damage_extent_radius": summary.get("damage_extent_radius")}
 
 
 def _shots(rows) -> list[Shot]:
@@ -156,14 +159,14 @@ def report(rows: list[dict], stop: str, scene_name: str = "") -> dict:
     """v50.json: the probit fit with every interval, the binned fractions, whether the outcomes
     rise with velocity, the Lambert-Jonas fit of the perforating runs, counts and cost."""
     from fabric_fenicsx.studies.lambert_jonas import fit_lambert_jonas
-    from fabric_fenicsx.studies.probit import LEVEL, fit_probit, separation
+    from fabric_fenicsx.studies.probit import LEVEL, fit_probit, monotone_violations, separation
 
     counted = [r for r in rows if r["outcome"] in ("perforated", "held")]
     v = [r["velocity"] for r in counted]
     y = [r["outcome"] == "perforated" for r in counted]
     fit = fit_probit(v, y) if counted else None
     bins = _bins(counted)
-    violations = _violations(counted)
+    violations = monotone_violations(bins)
     monotone = not violations and (fit is not None or (counted and separation(v, y) is not None))
     through = [r for r in rows if r["outcome"] == "perforated" and r.get("residual_velocity") is not None]
     lj, lj_error = None, None
