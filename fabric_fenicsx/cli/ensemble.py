@@ -131,7 +131,7 @@ def _members(args: argparse.Namespace, scene, out: Path, p: float, executor) -> 
                                 jobs=jobs, perturbation=p, on_member=on_member, executor=executor,
                                 progress=progress, first_seed=args.seeds)
     ok = [r for r in rows if "error" not in r]
-    rep = ensemble.summarise(ok, p)
+    rep = ensemble.summarise(ok, p, first_seed=args.seeds)
     rep.update(scene=str(args.scene), overrides=list(args.overrides), failed=[r for r in rows if "error" in r])
     write_atomic(out / "ensemble.json", json.dumps(rep, indent=1))
     if ok:

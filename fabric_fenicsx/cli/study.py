@@ -3,8 +3,10 @@ the thesis's chapter 4 as studies (:mod:`fabric_fenicsx.studies.chapter4`).
 
 NAME: table4, table5, table6, friction, fillet, v50 or chapter4 (all of them, and the validation
 report), or strip (the strength scatter's strip test, :mod:`fabric_fenicsx.cli.strip`). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time
-(the four scenes' ballistic limits are bisected side by side, sharing them), each into
-OUT/runs/<run>; a run stored with the same settings and model version is reused, so
+(the four scenes' ballistic limits are estimated side by side, sharing them), each into
+OUT/runs/<run> (the ballistic limits' runs into OUT/v50/SCENE/run_<i>, with each scene's
+v50.csv, v50.json and v50.png: :mod:`fabric_fenicsx.studies.v50`, ``--ci`` and ``--max-runs``
+as in ``fabric-fenicsx v50``); a run stored with the same settings and model version is reused, so
 an interrupted study resumes. ``--set`` applies to every run. Writes OUT/NAME.md and
 OUT/NAME.json; ``chapter4`` also writes the report ``--doc`` (default docs/validation.md).
 Unless ``--quiet``, a line per run as it ends and a progress line (runs done of those planned,
@@ -56,10 +58,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="runs at the same time (default: the cores; with --scheduler, the cluster's worker threads)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a scene key of every run (repeatable)")
-    parser.add_argument("--members", type=int, default=None,
-                        help="v50: runs per velocity, the impact velocity changed by k x 1e-12 (default: --jobs, "
-                             "at least 2)")
-    parser.add_argument("--tol", type=float, default=0.5, help="v50: width of the final bracket (m/s, default 0.5)")
+    parser.add_argument("--ci", type=float, default=2.0,
+                        help="v50: stop a scene's estimate when V50's 95 %% interval is no wider (m/s, default 2)")
+    parser.add_argument("--max-runs", type=int, default=40,
+                        help="v50: stop a scene's estimate after this many runs (default 40)")
     parser.add_argument("--doc", default="docs/validation.md", help="chapter4: the report to write")
     parser.add_argument("--quiet", action="store_true", help="no line per run and no progress lines")
     parser.add_argument("--seeds", type=int, default=100, help="strip: seeds of the scatter per mesh (default 100)")
@@ -86,10 +88,10 @@ def _check(args) -> str | None:
         return f"unknown study {args.name!r}; the studies are {', '.join(chapter4.STUDIES)}"
     if args.jobs is not None and args.jobs < 1:
         return f"--jobs must be at least 1, got {args.jobs}"
-    if args.members is not None and args.members < 1:
-        return f"--members must be at least 1, got {args.members}"
-    if not args.tol > 0:
-        return f"--tol must be positive, got {args.tol}"
+    if not args.ci > 0:
+        return f"--ci must be a width > 0 m/s, got {args.ci}"
+    if args.max_runs < 2:
+        return f"--max-runs must be at least 2 (a held and a perforating run), got {args.max_runs}"
     if scheduler_problem(args.scheduler):
         return scheduler_problem(args.scheduler)
     try:
@@ -159,8 +161,8 @@ def _run_study(args, executor, t0: float) -> int:
     waves = _wave_speeds(wave_run, results.pop(wave_run.key), out / "runs") if wave_run else {}
     limits = {}
     if args.name in ("v50", "chapter4"):
-        limits = _ballistic_limits(overrides, results, out / "runs", jobs, args.members or max(2, jobs), args.tol,
-                                   progress, executor, counter)
+        limits = _ballistic_limits(overrides, results, out / "v50", jobs, args.ci, args.max_runs, args.quiet,
+                                   executor, counter)
     wall = time.perf_counter() - t0
     report = {"study": args.name, "overrides": list(args.overrides), "wall_time_s": wall,
               "runs": results, "v50": limits, "waves": waves}
@@ -177,7 +179,10 @@ def _run_study(args, executor, t0: float) -> int:
         write_atomic(doc, text.replace("](pictures/", f"]({pictures.name}/"))
         print(f"{PROG}: wrote {doc}")
     failed = [k for k, s in results.items() if "error" in s]
-    print(f"{PROG} {args.name}: {len(results) - len(failed)} of {len(results)} runs, wall time "
+    failed += [f"{scene}/run_{r['run']:03d}" for scene, rep in limits.items() for r in rep["rows"]
+               if r["outcome"] == "failed"]
+    n_runs = len(results) + sum(rep["runs"] for rep in limits.values())
+    print(f"{PROG} {args.name}: {n_runs - len(failed)} of {n_runs} runs complete, wall time "
           f"{wall / 60:.1f} min; report {out / (args.name + '.md')}")
     return 1 if failed else 0
 
@@ -213,19 +218,23 @@ def _wave_speeds(run, done: dict, runs_dir: Path) -> dict:
             "wall_time_s": done.get("wall_time_s")}
 
 
-def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, members: int, tol: float,
-                      progress, executor=None, counter=None) -> dict:
-    """The ballistic limit of each scene: :func:`~fabric_fenicsx.studies.limit.bisect_limit` from
-    :func:`~fabric_fenicsx.studies.chapter4.v50_start` (on the table runs in ``results``),
-    ``members`` runs per velocity (V0 changed by k x 1e-12); the four scenes side by side in
-    threads whose runs share ``jobs`` processes of ``executor``; ``counter`` (a
-    :class:`~fabric_fenicsx.studies.runpool.Progress`) is told of each velocity's runs."""
+def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: float, max_runs: int, quiet: bool,
+                      executor=None, counter=None) -> dict:
+    """The ballistic limit of each scene as a statistic (:func:`~fabric_fenicsx.studies.v50.estimate`:
+    Neyer's design from the bracket :func:`~fabric_fenicsx.studies.chapter4.v50_start` finds in the
+    table runs of ``results``, a probit fit, until V50's 95 % interval is within ``ci`` m/s or
+    ``max_runs`` runs), each scene into ``v50_dir``/SCENE (run_<i>, v50.csv, v50.json, v50.png),
+    the four side by side in threads whose runs share ``jobs`` processes of ``executor``;
+    ``counter`` (a :class:`~fabric_fenicsx.studies.runpool.Progress`) is told of each run.
+    Returns {scene: :func:`~fabric_fenicsx.studies.v50.report` with ``start``, ``rows`` and
+    ``first_seed``}."""
+    import csv
     import threading
 
-    from fabric_fenicsx.studies import chapter4
-    from fabric_fenicsx.studies.ensemble import offsets
-    from fabric_fenicsx.studies.limit import bisect_limit
-    from fabric_fenicsx.studies.runpool import run_all
+    from fabric_fenicsx.impact.scene import load_scene
+    from fabric_fenicsx.studies import chapter4, v50
+    from fabric_fenicsx.studies.neyer import NeyerDesign
+    from fabric_fenicsx.studies.runpool import write_atomic
 
     slots = threading.BoundedSemaphore(jobs)
     stop = threading.Event()        # one scene's pool stopped (a full disk): the others stop too
@@ -233,35 +242,44 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
 
     def guarded(scene):
         try:
-            bisect(scene)
-        except BaseException as err:        # a bug, not a failed run: raised again below
+            limits[scene] = estimate(scene)
+        except BaseException as err:        # a bug or a stopped pool, not a failed run: raised again below
             crashed[scene] = err
 
-    def bisect(scene):
-        summaries: list[dict] = []
-
-        def evaluate(v):
-            runs = [chapter4.v50_run(scene, v, k, overrides) for k in offsets(members)]
-            if counter is not None:
-                counter.expect(len(runs))
-            done = run_all(runs, runs_dir, jobs=jobs, on_done=progress, slots=slots, stop=stop, executor=executor)
-            bad = [k for k, s in done.items() if "error" in s]
-            if bad:
-                raise RuntimeError(f"v50 of {scene}: run {bad[0]} failed ({done[bad[0]]['error']}); "
-                                   f"see {runs_dir / bad[0] / 'run.log'}")
-            summaries.extend(s for k, s in done.items() if k not in results)   # not the table's runs again
-            return [bool(s["perforated"]) for s in done.values()]
-
+    def estimate(scene):
+        path = str(chapter4.SCENE_DIR / chapter4.SCENES[scene])
+        first_seed = None if load_scene(path, list(overrides)).material.scatter == "none" else 1
         start = chapter4.v50_start(scene, results)
-        _say(f"{PROG} v50: {scene}, bisection from {start} m/s to {tol} m/s, {members} runs a velocity")
-        try:
-            r = bisect_limit(evaluate, *start, tol=tol)
-        except RuntimeError as err:         # a failed run: report it; the other scenes go on
-            _say(f"{PROG} v50: {err}", sys.stderr)
-            limits[scene] = {"error": str(err), "start": start, "members": members}
-            return
-        limits[scene] = {**r, "start": start, "members": members, "summaries": summaries}
-        _say(f"{PROG} v50: {scene}: limit {r['limit']} m/s, band {r['band']}")
+        out = v50_dir / scene
+        out.mkdir(parents=True, exist_ok=True)
+        table = out / "v50.csv"
+        v50.write_table(table, [])
+
+        def on_run(row):
+            with open(table, "a", newline="") as f:
+                csv.writer(f, lineterminator="\n").writerow(v50.table_cells(row))
+            if not quiet:
+                _say(f"  {scene} v50 run {row['run']} at {row['velocity']:.2f} m/s: {row['outcome']}"
+                     + (f" ({row['error']})" if "error" in row else ""))
+
+        _say(f"{PROG} v50: {scene}, Neyer's design from {start[0]:g}-{start[1]:g} m/s until V50's 95 % interval "
+             f"is within {ci:g} m/s or {max_runs} runs, into {out}")
+        result = v50.estimate(path, overrides, out, NeyerDesign(*start), ci=ci, max_runs=max_runs, jobs=jobs,
+                              first_seed=first_seed, executor=executor, on_run=on_run,
+                              on_batch=lambda rows, fit: v50.write_table(table, rows),
+                              on_start=None if counter is None else counter.expect,
+                              on_done=None if counter is None else (lambda run, s, reused: counter.finished(s, reused)),
+                              slots=slots, stop=stop)
+        rows = result["rows"]
+        v50.write_table(table, rows)
+        rep = v50.report(rows, result["stop"], scene)
+        rep.update(start=list(start), first_seed=first_seed, ci_target=ci, max_runs=max_runs)
+        write_atomic(out / "v50.json", json.dumps({**rep, "rows": rows}, indent=1, default=str))
+        v50.plot(rep, rows, out / "v50.png", title=f"{scene}: {len(rows)} runs", reference=v50.thesis_points(scene))
+        p = rep["probit"]
+        _say(f"{PROG} v50: {scene}: " + (f"V50 {p['v50']:.2f} m/s {v50.format_interval(p['v50_ci'])}"
+                                         if p else "no probit fit") + f" after {len(rows)} runs ({result['stop']})")
+        return {**rep, "rows": rows}
 
     threads = [threading.Thread(target=guarded, args=(scene,), name=f"v50-{scene}", daemon=True)
                for scene in chapter4.SCENES]
@@ -273,7 +291,7 @@ def _ballistic_limits(overrides, results: dict, runs_dir: Path, jobs: int, membe
     if stopped:         # the first cause, not the pools that stopped with it
         raise next((e for e in stopped if not str(e).startswith("stopped with")), stopped[0])
     for scene, err in crashed.items():
-        raise RuntimeError(f"{PROG} v50: the bisection of {scene} stopped") from err
+        raise RuntimeError(f"{PROG} v50: the estimate of {scene} stopped") from err
     return {scene: limits[scene] for scene in chapter4.SCENES}
 
 
@@ -283,7 +301,7 @@ def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall
 
     fp = code_fingerprint()
     names = [s for s in chapter4.STUDIES if s != "chapter4"] if name == "chapter4" else [name]
-    every = list(results.values()) + [s for r in limits.values() for s in r.get("summaries", [])]
+    every = list(results.values()) + [r for rep in limits.values() for r in rep["rows"]]
     run_wall = sum(s.get("wall_time_s") or 0.0 for s in every) + (waves.get("wall_time_s") or 0.0)
     lines = [f"# The thesis's chapter 4: `fabric-fenicsx study {name}`", "",
              f"Made by `fabric-fenicsx study {name}` in {wall / 60:.1f} min of wall time (stored runs are "
@@ -318,33 +336,7 @@ def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall
                       chapter4.variant_md(results, cases), ""]
             lines += _damage_pictures(results, cases, out, pictures / "damage_fillet.png", "fillet")
     if limits:
-        lines += ["## Ballistic limit (v50)", "",
-                  "Bisection between a velocity the fabric holds and one it lets through, several runs a "
-                  "velocity (the impact velocity changed by k x 1e-12 of itself): the band runs from the "
-                  "highest velocity at which every run held to the lowest at which every run perforated, "
-                  "each edge bisected to the tolerance; the limit is its midpoint. A scene's bisection starts "
-                  "from the tightest bracket its table runs give (the highest table velocity up to which every "
-                  "table run held, and the next; the table's run is the first member there), else from "
-                  f"{chapter4.V50_BRACKET[0]:g}-{chapter4.V50_BRACKET[1]:g} m/s. The thesis and the "
-                  "experiment put Y90's limit between 34.5 and 39.78 m/s.", "",
-                  "| scene | limit (m/s) | band (m/s) | width (m/s) | start (m/s) | velocities tried: perforated runs |",
-                  "|---|---|---|---|---|---|"]
-        for scene, r in limits.items():
-            if "error" in r:
-                lines.append(f"| {scene} | not found: a run failed ({_short(r['error'])}) | | | | |")
-                continue
-            lo, hi = r["band"]
-            width = f"{hi - lo:.2f}" if lo is not None and hi is not None else "-"
-            tries = ", ".join(f"{v:.2f}: {sum(o)}/{len(o)}" for v, o in r["tries"])
-            lim = f"{r['limit']:.2f}" if r["limit"] is not None else "not found"
-            start = " - ".join(f"{v:g}" for v in r["start"])
-            band = " - ".join("-" if x is None else f"{x:.6g}" for x in (lo, hi))
-            lines.append(f"| {scene} | {lim} | {band} | {width} | {start} | {tries} |")
-        lines += ["", "Every run of a scene at the velocities of its table and of the bisection together "
-                  "(the velocities where at least one run perforated and where at least one held):", ""]
-        for scene in limits:
-            lines.append(f"- {scene}: {_outcomes(scene, results, limits[scene])}")
-        lines.append("")
+        lines += _limits_md(limits, out, pictures)
     if name == "chapter4":
         chapter4.plot_residual(results, pictures / "residual.png")
         lines += ["## Residual against impact velocity", "", "![residual velocity](pictures/residual.png)", "",
@@ -361,26 +353,52 @@ def _short(error: str) -> str:
     return error.split("; largest")[0].split(". Likely")[0][:240]
 
 
-def _outcomes(scene: str, results: dict, limit: dict) -> str:
-    """Lowest velocity at which a run of ``scene`` perforated and highest at which one held,
-    over the table's runs and the bisection's."""
+def _limits_md(limits: dict, out: Path, pictures: Path) -> list[str]:
+    """The report's ballistic-limit section: each scene's estimate (V50, sigma, V10 and V90 with
+    their 95 % intervals, the runs' outcomes, the Lambert-Jonas Vbl), its picture, and the scenes
+    whose outcomes do not rise with velocity, per velocity bin."""
     from fabric_fenicsx.studies import chapter4
+    from fabric_fenicsx.studies.v50 import format_interval as ci
 
-    runs = [(v, bool(results.get(chapter4.run_key(scene, v), {}).get("perforated")))
-            for v in chapter4.VELOCITIES if "perforated" in results.get(chapter4.run_key(scene, v), {})]
-    runs += [(v, o) for v, outs in limit.get("tries", []) for o in outs]
-    through = [v for v, o in runs if o]
-    held = [v for v, o in runs if not o]
-    if not runs:
-        return "no runs"
-    if not held:
-        return f"every run perforated ({min(through):g} to {max(through):g} m/s)"
-    if not through:
-        return f"every run held ({min(held):g} to {max(held):g} m/s)"
-    lo, hi = min(through), max(held)
-    if lo > hi:
-        return f"every run held up to {hi:g} m/s and perforated from {lo:g} m/s"
-    return f"runs perforated from {lo:g} m/s and held up to {hi:g} m/s: outcomes overlap over {hi - lo:.2f} m/s"
+    lines = ["## Ballistic limit (v50)", "",
+             "Each scene's ballistic limit as ballistic testing estimates it (`fabric-fenicsx v50`, "
+             "docs/ballistic_limit.md): runs at velocities chosen by Neyer's D-optimal design, starting from the "
+             "tightest bracket the scene's table runs give (the highest table velocity up to which every table run "
+             f"held, and the next), else from {chapter4.V50_BRACKET[0]:g}-{chapter4.V50_BRACKET[1]:g} m/s; each run "
+             "a new member (a seed of the strength scatter, or without one the velocity changed by i x 1e-12); a "
+             "probit fit with profile-likelihood 95 % intervals. Runs at the time limit with the projectile still "
+             "moving forward are undecided and not counted. The thesis and the experiment put Y90's limit between "
+             "34.5 and 39.78 m/s.", "",
+             "| scene | V50 (m/s), 95 % | sigma (m/s), 95 % | V10 / V90 (m/s) | runs: perforated / held / undecided / "
+             "failed | Lambert-Jonas Vbl (m/s), 95 % | start (m/s) | stopped |",
+             "|---|---|---|---|---|---|---|---|"]
+    for scene, rep in limits.items():
+        p, c, lj = rep["probit"], rep["counts"], rep["lambert_jonas"]
+        if p is not None:
+            v50 = f"{p['v50']:.2f} {ci(p['v50_ci'])}" + ("" if rep["monotone"] else " (not monotone)")
+            sigma, tails = f"{p['sigma']:.2f} {ci(p['sigma_ci'])}", f"{p['v10']:.2f} / {p['v90']:.2f}"
+        else:
+            v50 = ("no fit: held below, perforated above " + ci(rep["bracket"]) if rep["bracket"] is not None
+                   else "no estimate")
+            sigma = tails = "-"
+        vbl = "-" if lj is None else f"{lj['vbl']:.2f} {ci(lj['vbl_ci'])}"
+        start = " - ".join(f"{v:g}" for v in rep["start"])
+        errors = sorted({_short(r["error"]) for r in rep["rows"] if r.get("error")})
+        stopped = rep["stop"] + (f"; failed: {errors[0]}" if errors else "")
+        lines.append(f"| {scene} | {v50} | {sigma} | {tails} | {c['perforated']} / {c['held']} / {c['undecided']} / "
+                     f"{c['failed']} | {vbl} | {start} | {stopped} |")
+    lines.append("")
+    for scene, rep in limits.items():
+        if not rep["monotone"] and rep["bins"]:
+            lines.append(f"{scene}: the outcomes do not rise with velocity within their intervals; the fraction "
+                         "perforated per velocity: " + "; ".join(
+                             f"{b['lo']:.2f}-{b['hi']:.2f} m/s {b['perforated']}/{b['n']}" for b in rep["bins"]))
+            lines.append("")
+        png = out / "v50" / scene / "v50.png"
+        if png.exists():
+            shutil.copy(png, pictures / f"v50-{scene}.png")
+            lines += [f"![{scene}: ballistic limit](pictures/v50-{scene}.png)", ""]
+    return lines
 
 
 def _damage_pictures(results: dict, cases, out: Path, path: Path, what: str) -> list[str]:

@@ -102,31 +102,8 @@ def _open(args, scene, out: Path) -> int:
         return _estimate(args, scene, out, executor)
 
 
-def _write_table(path: Path, rows) -> None:
-    """v50.csv with ``rows`` in run order, written atomically (the rows appended as each run ended
-    are replaced by the same rows sorted)."""
-    import io
-
-    from fabric_fenicsx.studies.runpool import write_atomic
-    from fabric_fenicsx.studies.v50 import COLUMNS
-
-    text = io.StringIO()
-    writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(COLUMNS)
-    for r in sorted(rows, key=lambda r: r["run"]):
-        writer.writerow(_cells(r))
-    write_atomic(path, text.getvalue())
-
-
-def _cells(row: dict) -> list:
-    from fabric_fenicsx.studies.v50 import COLUMNS
-
-    return ["" if row.get(c) is None else row[c] for c in COLUMNS]
-
-
 def _estimate(args, scene, out: Path, executor) -> int:
     from fabric_fenicsx.studies import v50
-    from fabric_fenicsx.studies.chapter4 import THESIS, VELOCITIES
     from fabric_fenicsx.studies.neyer import NeyerDesign
     from fabric_fenicsx.studies.runpool import write_atomic
 
@@ -137,7 +114,7 @@ def _estimate(args, scene, out: Path, executor) -> int:
     first_seed = None if scene.material.scatter == "none" else args.seeds
     out.mkdir(parents=True, exist_ok=True)
     table = out / "v50.csv"
-    _write_table(table, [])
+    v50.write_table(table, [])
     members = ("round-off twins (velocity x (1 + i 1e-12))" if first_seed is None
                else f"fabrics of seeds {first_seed}, {first_seed + 1}, ... ({scene.material.scatter} scatter)")
     say(f"{PROG}: {scene.name}, Neyer's D-optimal design from {lo:g}-{hi:g} m/s, {jobs} runs at a time, "
@@ -146,35 +123,30 @@ def _estimate(args, scene, out: Path, executor) -> int:
 
     def on_run(row):
         with open(table, "a", newline="") as f:
-            csv.writer(f, lineterminator="\n").writerow(_cells(row))
+            csv.writer(f, lineterminator="\n").writerow(v50.table_cells(row))
         extra = (f", residual {row['residual_velocity']:.2f} m/s" if row["outcome"] == "perforated" else "")
         say(f"run {row['run']} at {row['velocity']:.2f} m/s: {row['outcome']}{extra}"
             + (f" ({row['error']})" if "error" in row else f" ({row.get('end_reason')}, {row.get('wall_time_s') or 0:.0f} s)"))
 
     def on_batch(rows, fit):
-        _write_table(table, rows)
+        v50.write_table(table, rows)
         c = {k: sum(r["outcome"] == k for r in rows) for k in ("held", "perforated")}
         state = ("no fit yet" if fit is None else
-                 f"V50 {fit.v50:.2f} m/s, 95 % {v50._ci(fit.v50_ci)}, width {fit.width:.2f} m/s")
+                 f"V50 {fit.v50:.2f} m/s, 95 % {v50.format_interval(fit.v50_ci)}, width {fit.width:.2f} m/s")
         say(f"v50: {len(rows)} runs ({c['held']} held, {c['perforated']} perforated): {state}; "
             f"{time.monotonic() - t0:.0f} s elapsed")
 
     result = v50.estimate(args.scene, args.overrides, out, design, ci=args.ci, max_runs=args.max_runs, jobs=jobs,
                           first_seed=first_seed, executor=executor, on_run=on_run, on_batch=on_batch)
     rows = result["rows"]
-    _write_table(table, rows)
+    v50.write_table(table, rows)
     rep = v50.report(rows, result["stop"], scene.name)
     rep.update(scene_file=str(args.scene), overrides=list(args.overrides), ci_target=args.ci,
                max_runs=args.max_runs, jobs=jobs, start_bracket=[lo, hi], first_seed=first_seed,
                wall_time_s=time.monotonic() - t0)
     write_atomic(out / "v50.json", json.dumps(rep, indent=1))
-    thesis = THESIS.get(scene.name.upper(), {})
-    reference = {}
-    for key, label in (("residual", "thesis (Table 4-6)"), ("residual_experiment", "experiment (Table 4)")):
-        pts = [(v, r) for v, r in zip(VELOCITIES, thesis.get(key, ())) if r is not None]
-        if pts:
-            reference[label] = tuple(zip(*pts))
-    v50.plot(rep, rows, out / "v50.png", title=f"{scene.name}: {len(rows)} runs", reference=reference)
+    v50.plot(rep, rows, out / "v50.png", title=f"{scene.name}: {len(rows)} runs",
+             reference=v50.thesis_points(scene.name))
     print(v50.format_report(rep))
     print(f"report in {out / 'v50.json'}, runs in {table}, plot {out / 'v50.png'}")
     return 0

@@ -4,11 +4,11 @@ numbers beside them, and the tables, plot and checklist of docs/validation.md.
 Studies (``fabric-fenicsx study NAME``): ``table4`` (Y90 at the five velocities of Table 4),
 ``table5`` (XY0 next to Y90), ``table6`` (XY45 next to XY0, and Y0), ``friction`` (Y90 and XY0
 at 57.3 m/s, projectile friction 0.1, 0.5, 2.0; Sec. 4.4.1), ``fillet`` (Y90 at 57.3 m/s, fillet
-0, 0.8, 2 mm; Sec. 4.4.3), ``v50`` (the ballistic limit of each scene, :mod:`limit`) and
-``chapter4`` (all of them). A run is named by its settings (``Y90-v57.3``, ``XY0-v57.3-mu2``,
-``Y90-v57.3-fillet0.8mm``), so studies that need the same run share it: the ballistic limit's
-first member at a table velocity is the table's run, and its bisection starts from the tightest
-bracket the table's runs give (:func:`v50_start`).
+0, 0.8, 2 mm; Sec. 4.4.3), ``v50`` (the ballistic limit of each scene as a statistic,
+:mod:`~fabric_fenicsx.studies.v50`) and ``chapter4`` (all of them). A run is named by its settings
+(``Y90-v57.3``, ``XY0-v57.3-mu2``, ``Y90-v57.3-fillet0.8mm``), so studies that need the same run
+share it; a ballistic limit's design starts from the tightest bracket the table's runs give
+(:func:`v50_start`).
 
 Nothing here is tuned: the scenes are run as they are (``demos/scenes``), with the user's
 ``--set`` overrides applied to every run.
@@ -20,7 +20,7 @@ from pathlib import Path
 from fabric_fenicsx.studies.runpool import Run
 
 __all__ = ["SCENES", "VELOCITIES", "THESIS", "STUDIES", "FRICTIONS", "FILLETS", "V50_BRACKET", "run_key", "plan",
-           "v50_run", "v50_start", "row", "fmt", "table_md", "variant_md", "checklist", "plot_residual",
+           "v50_start", "row", "fmt", "table_md", "variant_md", "checklist", "plot_residual",
            "plot_damage", "incomplete_cases"]
 
 SCENE_DIR = Path(__file__).resolve().parents[2] / "demos" / "scenes"
@@ -49,7 +49,7 @@ THESIS = {  # Tables 4-6 (thesis simulations; Y90 also the experiment); None = b
 }
 
 V50_BRACKET = (20.0, 60.0)
-"""Where the ballistic-limit bisection of a scene starts when its table runs give no bracket
+"""Where the ballistic-limit design of a scene starts when its table runs give no bracket
 (m/s); it widens the bracket if it must."""
 
 STUDIES = ("table4", "table5", "table6", "friction", "fillet", "v50", "chapter4")
@@ -79,8 +79,8 @@ def _run(scene: str, v0: float, overrides, friction: float = 0.5, fillet: float 
 
 def plan(name: str, overrides=()) -> list[Run]:
     """The impact runs of study ``name`` known before any has run, every run once: for ``v50``
-    each scene at the thesis's bracket, 34.5 and 39.78 m/s (where its bisection may start; the
-    bisection's own runs depend on their outcomes)."""
+    each scene at the thesis's bracket, 34.5 and 39.78 m/s (where its design may start; the
+    design's own runs depend on their outcomes)."""
     if name not in STUDIES:
         raise ValueError(f"unknown study {name!r}; the studies are {', '.join(STUDIES)}")
     names = [s for s in STUDIES if s != "chapter4"] if name == "chapter4" else [name]
@@ -98,23 +98,9 @@ def plan(name: str, overrides=()) -> list[Run]:
     return list(runs.values())
 
 
-def v50_run(scene: str, v: float, k: int, overrides=()) -> Run:
-    """Member ``k`` of the ballistic-limit runs of ``scene`` at ``v`` (m/s), its impact velocity
-    v (1 + k 1e-12) (:func:`~fabric_fenicsx.studies.ensemble.member_velocity`), ended as soon
-    as the fabric has stopped the projectile (``run.stop_when_held``: only the outcome counts);
-    member 0 at a table velocity is the table's run (the same settings, run to its end)."""
-    from fabric_fenicsx.studies.ensemble import member_velocity
-
-    if k == 0 and v in VELOCITIES:
-        return _run(scene, v, overrides)
-    return Run(f"{scene}-v50-v{v:.4f}-k{k}", str(SCENE_DIR / SCENES[scene]),
-               (*overrides, "run.stop_when_held=true", f"projectile.velocity={member_velocity(v, k)!r}"))
-
-
 def v50_start(scene: str, results: dict, default: tuple = V50_BRACKET) -> tuple[float, float]:
-    """Where the bisection of ``scene``'s ballistic limit starts (m/s): the highest of the table's
-    velocities up to which every table run held, and the next one, whose run perforated (one run
-    each: the bisection runs the other members); else ``default`` (the lowest table run
+    """Where the design of ``scene``'s ballistic limit starts (m/s): the highest of the table's
+    velocities up to which every table run held, and the next one, whose run perforated; else ``default`` (the lowest table run
     perforated, or a run is missing or failed before the first perforation). ``results``: run
     key -> summary."""
     held = None

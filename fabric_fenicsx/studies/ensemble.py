@@ -82,9 +82,11 @@ def member_row(k: int, velocity: float, summary: dict) -> dict:
             "wall_time_s": summary.get("wall_time_s")}
 
 
-def summarise(rows: list[dict], perturbation: float = PERTURBATION) -> dict:
-    """The ensemble's report: its members (rows) and :func:`statistics` of every quantity."""
-    return {"perturbation": perturbation, "members": rows,
+def summarise(rows: list[dict], perturbation: float = PERTURBATION, first_seed: int | None = None) -> dict:
+    """The ensemble's report: its members (rows) and :func:`statistics` of every quantity;
+    ``first_seed``: the members are the fabrics of seeds first_seed, first_seed + 1, ... (a
+    strength scatter) instead of velocities changed by k x ``perturbation``."""
+    return {"perturbation": perturbation, "first_seed": first_seed, "members": rows,
             "statistics": {q: statistics([r.get(q) for r in rows]) for q in QUANTITIES},
             "end_reasons": {e: sum(str(r.get("end_reason")) == e for r in rows)
                             for e in sorted({str(r.get("end_reason")) for r in rows})}}
@@ -97,7 +99,9 @@ def format_summary(rep: dict) -> str:
              "damage_onset_deflection": ("mm", 1e3),
              "damage_onset_radius": ("mm", 1e3), "removed_cells": ("", 1.0)}
     n = len(rep["members"])
-    lines = [f"ensemble of {n} members, impact velocity changed by k x {rep['perturbation']:g} of itself",
+    members = (f"impact velocity changed by k x {rep['perturbation']:g} of itself" if rep.get("first_seed") is None
+               else f"the fabrics of scatter seeds from {rep['first_seed']}, at one impact velocity")
+    lines = [f"ensemble of {n} members, {members}",
              f"{'quantity':<26}{'mean':>10}{'+- 95 %':>10}{'sd':>10}{'min':>10}{'max':>10}"]
     for q, s in rep["statistics"].items():
         unit, scale = units.get(q, ("", 1.0))

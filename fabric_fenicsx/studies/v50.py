@@ -30,7 +30,8 @@ import numpy as np
 
 from fabric_fenicsx.studies.neyer import NeyerDesign, Shot
 
-__all__ = ["COLUMNS", "TWIN_STEP", "outcome", "member_run", "estimate", "report", "format_report", "plot"]
+__all__ = ["COLUMNS", "TWIN_STEP", "outcome", "member_run", "estimate", "report", "format_report", "format_interval",
+           "table_cells", "write_table", "thesis_points", "plot"]
 
 COLUMNS = ("run", "seed", "velocity", "outcome", "residual_velocity", "absorbed_energy", "viscous_dissipation",
            "removed_cells", "damage_onset_radius", "damage_extent_radius", "end_reason", "phase", "wall_time_s",
@@ -90,9 +91,13 @@ def _shots(rows) -> list[Shot]:
 
 
 def estimate(scene: str, overrides, out_dir, design: NeyerDesign, ci: float = 2.0, max_runs: int = 40,
-             jobs: int = 1, first_seed: int | None = None, executor=None, on_run=None, on_batch=None) -> dict:
-    """Run the estimate into ``out_dir`` (run_<i> folders). ``on_run(row)`` follows each run's
-    end, ``on_batch(rows, fit)`` each batch. Returns ``{"rows": [...], "stop": why it stopped}``."""
+             jobs: int = 1, first_seed: int | None = None, executor=None, on_run=None, on_batch=None,
+             on_start=None, on_done=None, slots=None, stop=None) -> dict:
+    """Run the estimate into ``out_dir`` (run_<i> folders). ``on_start(n)`` precedes a batch of
+    ``n`` runs, ``on_run(row)`` follows each run's end (and ``on_done(run, summary, reused)``,
+    the pool's own callback), ``on_batch(rows, fit)`` each batch. ``slots`` and ``stop`` are
+    shared with estimates running beside this one (:func:`~fabric_fenicsx.studies.runpool.run_all`).
+    Returns ``{"rows": [...], "stop": why it stopped}``."""
     from fabric_fenicsx.studies.probit import fit_probit
     from fabric_fenicsx.studies.runpool import run_all
 
@@ -121,8 +126,12 @@ def estimate(scene: str, overrides, out_dir, design: NeyerDesign, ci: float = 2.
             new[i] = _row(i, v, seed, phase, summary)
             if on_run is not None:
                 on_run(new[i])
+            if on_done is not None:
+                on_done(run, summary, reused)
 
-        run_all(runs, out_dir, jobs=len(runs), on_done=done, executor=executor)
+        if on_start is not None:
+            on_start(len(runs))
+        run_all(runs, out_dir, jobs=len(runs), on_done=done, executor=executor, slots=slots, stop=stop)
         rows += [new[i] for i in sorted(new)]
         counted = [r for r in rows if r["outcome"] in ("perforated", "held")]
         fit = fit_probit([r["velocity"] for r in counted], [r["outcome"] == "perforated" for r in counted],
@@ -203,7 +212,8 @@ def _range(values):
     return [float(min(values)), float(max(values))] if values else None
 
 
-def _ci(ci) -> str:
+def format_interval(ci) -> str:
+    """``[lo, hi]`` of an interval to two decimals, an end that is None as ``open``."""
     lo, hi = ci
     return f"[{'open' if lo is None else f'{lo:.2f}'}, {'open' if hi is None else f'{hi:.2f}'}]"
 
@@ -219,13 +229,13 @@ def format_report(rep: dict) -> str:
              f"{c['failed']} failed; {rep['core_seconds'] / 3600:.3g} core-hours; stopped: {rep['stop']}"]
     p = rep["probit"]
     if p is not None:
-        lines += [f"V50   {p['v50']:8.2f} m/s  95 % {_ci(p['v50_ci'])}",
-                  f"V10   {p['v10']:8.2f} m/s  95 % {_ci(p['v10_ci'])}",
-                  f"V90   {p['v90']:8.2f} m/s  95 % {_ci(p['v90_ci'])}",
-                  f"sigma {p['sigma']:8.2f} m/s  95 % {_ci(p['sigma_ci'])}  (probit, profile-likelihood intervals)"]
+        lines += [f"V50   {p['v50']:8.2f} m/s  95 % {format_interval(p['v50_ci'])}",
+                  f"V10   {p['v10']:8.2f} m/s  95 % {format_interval(p['v10_ci'])}",
+                  f"V90   {p['v90']:8.2f} m/s  95 % {format_interval(p['v90_ci'])}",
+                  f"sigma {p['sigma']:8.2f} m/s  95 % {format_interval(p['sigma_ci'])}  (probit, profile-likelihood intervals)"]
     elif rep["bracket"] is not None:
         lines.append(f"no probit fit: every held run is slower than every perforating one, bracket "
-                     f"{_ci(rep['bracket'])} m/s")
+                     f"{format_interval(rep['bracket'])} m/s")
     if not rep["monotone"]:
         lines.append("the outcomes do not rise with velocity within their intervals: read the probability of "
                      "perforation per velocity, not one V50:")
@@ -239,13 +249,49 @@ def format_report(rep: dict) -> str:
                          f"from the impact point, absorbed {_fmt(m['absorbed_energy'], 1, ' J')}")
     lj = rep["lambert_jonas"]
     if lj is not None:
-        lines.append(f"Lambert-Jonas: a {lj['a']:.3f} {_ci(lj['a_ci'])}, p {lj['p']:.2f} {_ci(lj['p_ci'])}, "
-                     f"Vbl {lj['vbl']:.2f} m/s {_ci(lj['vbl_ci'])} (bootstrap), rms {lj['rms']:.2f} m/s, "
+        lines.append(f"Lambert-Jonas: a {lj['a']:.3f} {format_interval(lj['a_ci'])}, p {lj['p']:.2f} {format_interval(lj['p_ci'])}, "
+                     f"Vbl {lj['vbl']:.2f} m/s {format_interval(lj['vbl_ci'])} (bootstrap), rms {lj['rms']:.2f} m/s, "
                      f"{lj['n']} runs" + (f"; at a bound of its range, not determined by these runs: "
                                           f"{', '.join(lj['at_bound'])}" if lj["at_bound"] else ""))
     else:
         lines.append(f"Lambert-Jonas: not fitted ({rep['lambert_jonas_error']})")
     return "\n".join(lines)
+
+
+def table_cells(row: dict) -> list:
+    """One row of v50.csv: ``row``'s values in :data:`COLUMNS` order, None as an empty cell."""
+    return ["" if row.get(c) is None else row[c] for c in COLUMNS]
+
+
+def write_table(path, rows) -> None:
+    """v50.csv with ``rows`` in run order, written atomically (the rows appended as each run ended
+    are replaced by the same rows sorted)."""
+    import csv
+    import io
+
+    from fabric_fenicsx.studies.runpool import write_atomic
+
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for r in sorted(rows, key=lambda r: r["run"]):
+        writer.writerow(table_cells(r))
+    write_atomic(path, text.getvalue())
+
+
+def thesis_points(scene_name: str) -> dict:
+    """The residual velocities of Tables 4-6 for scene ``scene_name`` (Y90 also the
+    experiment's) as ``{label: (velocities, residuals)}``, the runs that bounced back left out:
+    the ``reference`` of :func:`plot`."""
+    from fabric_fenicsx.studies.chapter4 import THESIS, VELOCITIES
+
+    thesis = THESIS.get(scene_name.upper(), {})
+    points = {}
+    for key, label in (("residual", "thesis (Table 4-6)"), ("residual_experiment", "experiment (Table 4)")):
+        pts = [(v, r) for v, r in zip(VELOCITIES, thesis.get(key, ())) if r is not None]
+        if pts:
+            points[label] = tuple(zip(*pts))
+    return points
 
 
 def plot(rep: dict, rows: list[dict], path, title: str = "", reference: dict | None = None) -> None:

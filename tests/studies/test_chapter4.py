@@ -1,5 +1,5 @@
-"""The chapter-4 studies (docs/validation.md): the ballistic-limit bisection on stand-in functions, which
-runs each study makes, the thesis's findings from the numbers, parallel runs that equal serial
+"""The chapter-4 studies (docs/validation.md): which runs each study makes, the ballistic limits on
+stand-in runs, the thesis's findings from the numbers, parallel runs that equal serial
 ones, and the ``study`` command on tiny runs."""
 import json
 import sys
@@ -7,40 +7,12 @@ import sys
 import pytest
 
 from fabric_fenicsx.studies import chapter4
-from fabric_fenicsx.studies.limit import bisect_limit
 from fabric_fenicsx.studies.runpool import Run, run_all
+from tests.tools.limits import check_stand_in_limits, stand_in_limits
 
 TINY = ("mesh.kind=uniform", "mesh.n=12", "mesh.side=0.08", "run.t_end=2e-4", "projectile.diameter=0.02",
         "projectile.mass=0.005", "output.xdmf_interval=0", "output.progress_interval=0")
 """A 12 x 12 fabric of 80 mm hit by a 5 g projectile for 0.2 ms: a run of about a second."""
-
-
-def test_bisection_brackets_a_sharp_limit_to_the_tolerance():
-    r = bisect_limit(lambda v: [v > 37.2], 20.0, 60.0, tol=0.5)
-    lo, hi = r["band"]
-    assert r["found"] and lo <= 37.2 < hi and hi - lo <= 0.5 and r["lower"] == r["upper"] == (lo, hi)
-    assert r["limit"] == pytest.approx(37.2, abs=0.25)
-
-
-def test_bisection_keeps_scattered_outcomes_as_a_band():
-    """Two runs a velocity whose limits are 36.6 and 37.8 m/s: the band runs from the last
-    velocity where both held to the first where both perforated, each edge to the tolerance."""
-    r = bisect_limit(lambda v: [v > 36.6, v > 37.8], 20.0, 60.0, tol=0.5)
-    lo, hi = r["band"]
-    assert r["found"] and 36.1 <= lo <= 36.6 and 37.8 <= hi <= 38.3
-    assert r["lower"][0] <= 36.6 < r["lower"][1] and r["upper"][0] <= 37.8 < r["upper"][1]
-    velocities = [v for v, _ in r["tries"]]
-    assert len(velocities) == len(set(velocities))           # no velocity run twice
-
-
-def test_bisection_widens_the_bracket_and_says_when_it_finds_no_limit():
-    low = bisect_limit(lambda v: [v > 7.2], 20.0, 60.0)
-    assert low["found"] and low["band"][0] <= 7.2 < low["band"][1]
-    high = bisect_limit(lambda v: [v > 700.0], 20.0, 60.0, expand=3)
-    assert not high["found"] and high["limit"] is None
-    assert high["band"] == (480.0, None) and [v for v, _ in high["tries"]] == [20.0, 60.0, 120.0, 240.0, 480.0]
-    with pytest.raises(ValueError):
-        bisect_limit(lambda v: [True], 60.0, 20.0)
 
 
 def test_every_study_runs_what_the_thesis_ran_and_shares_runs():
@@ -58,7 +30,7 @@ def test_every_study_runs_what_the_thesis_ran_and_shares_runs():
         chapter4.plan("table7")
 
 
-def test_the_bisection_starts_from_the_tightest_bracket_the_table_runs_give():
+def test_the_ballistic_limit_starts_from_the_tightest_bracket_the_table_runs_give():
     def runs(*outcomes, scene="XY0"):
         return {chapter4.run_key(scene, v): o if isinstance(o, dict) else {"perforated": o}
                 for v, o in zip(chapter4.VELOCITIES, outcomes)}
@@ -71,13 +43,6 @@ def test_the_bisection_starts_from_the_tightest_bracket_the_table_runs_give():
     assert chapter4.v50_start("XY0", runs(False, {"error": "x"}, True)) == chapter4.V50_BRACKET
     assert chapter4.v50_start("Y90", runs(False, True)) == chapter4.V50_BRACKET          # another scene's
     assert chapter4.v50_start("XY0", {}, default=(1.0, 2.0)) == (1.0, 2.0)
-    first = chapter4.v50_run("XY0", 34.5, 0, ("run.t_end=1e-3",))
-    table = {r.key: r for r in chapter4.plan("table5", ("run.t_end=1e-3",))}["XY0-v34.5"]
-    assert first == table
-    other = chapter4.v50_run("XY0", 34.5, 1, ("run.t_end=1e-3",))
-    assert other.key == "XY0-v50-v34.5000-k1" and other.overrides[-1] == f"projectile.velocity={34.5 * (1 + 1e-12)!r}"
-    assert "run.stop_when_held=true" in other.overrides and "run.stop_when_held=true" not in first.overrides
-    assert chapter4.v50_run("XY0", 37.14, 0).key == "XY0-v50-v37.1400-k0"
 
 
 def test_concurrent_studies_share_the_processes_they_are_given(tmp_path, monkeypatch):
@@ -175,50 +140,38 @@ def test_the_study_command_on_tiny_runs_and_its_input_errors(tmp_path, capsys):
     assert main(["study", "table4", "--set", "run.damping=7", "--out", str(tmp_path / "z")]) == 2
 
 
-def test_the_ballistic_limit_study_bisects_each_scene_on_its_runs(tmp_path, monkeypatch, capsys):
-    """``study v50`` with stand-in runs (a run perforates above 37 m/s, Y0's members disagree
-    between 41 and 42 m/s, XY45's runs fail): each scene's limit and band, the failure reported
-    and the other scenes done."""
+def test_the_ballistic_limit_study_estimates_each_scene_from_its_runs(tmp_path, monkeypatch, capsys):
+    """``study v50`` with stand-in runs (:func:`tests.tools.limits.stand_in_limits`): each scene's estimate, the
+    failure reported and the other scenes done; run again, the stored runs (the failures
+    included) are reused and the tables are the same."""
     from fabric_fenicsx.cli import main
     from fabric_fenicsx.studies import runpool
 
-    def command(run, out):
-        v = float([o for o in run.overrides if o.startswith("projectile.velocity=")][-1].split("=")[1])
-        scene = run.key.split("-")[0]
-        if scene == "XY45":
-            return [sys.executable, "-c", "import sys; print('stand-in failure'); sys.exit(1)"]
-        limit = 41.0 if scene == "Y0" and run.key.endswith("k0") else 42.0 if scene == "Y0" else 37.0
-        summary = dict(residual_velocity=v - limit, absorbed_energy=1.0, end_reason="x", perforated=v > limit)
-        return [sys.executable, "-c", f"import json; open({str(out / 'summary.json')!r}, 'w').write({json.dumps(summary)!r})"]
-    monkeypatch.setattr(runpool, "_command", command)
+    monkeypatch.setattr(runpool, "_command", stand_in_limits)
+    real_stored = runpool._stored
     monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
-    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 1   # XY45's runs failed
+    args = ["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--max-runs", "12", "--ci", "1", "--quiet"]
+    assert main(args) == 1                  # XY45's runs failed
     limits = json.loads((tmp_path / "v50.json").read_text())["v50"]
-    for scene in ("Y90", "XY0"):
-        lo, hi = limits[scene]["band"]
-        assert lo <= 37.0 < hi and hi - lo <= 0.5
-        assert limits[scene]["start"] == [34.5, 39.78]        # the table runs at 34.5 and 39.78 bracket it
-        tried = [v for v, _ in limits[scene]["tries"]]
-        assert min(tried) == 34.5 and max(tried) == 39.78 and len(tried) == 6   # 5.28 m/s halved 4 times
-        assert not (tmp_path / "runs" / f"{scene}-v50-v34.5000-k0").exists()   # member 0 is the table's run
-        assert (tmp_path / "runs" / f"{scene}-v50-v34.5000-k1" / "summary.json").exists()
-    assert limits["Y0"]["start"] == limits["XY45"]["start"] == list(chapter4.V50_BRACKET)  # held at both; failed
-    lo, hi = limits["Y0"]["band"]
-    assert 40.5 <= lo <= 41.0 and 42.0 <= hi <= 42.5
-    assert "stand-in failure" in limits["XY45"]["error"]
+    check_stand_in_limits(limits, tmp_path, 12)
     md = (tmp_path / "v50.md").read_text()
     xy45 = [line for line in md.splitlines() if line.startswith("| XY45 |")]
-    assert len(xy45) == 1 and "not found: a run failed" in xy45[0] and "stand-in failure" in xy45[0]
+    assert len(xy45) == 1 and "no estimate" in xy45[0] and "stand-in failure" in xy45[0]
     y90 = [line for line in md.splitlines() if line.startswith("| Y90 |")]
-    assert len(y90) == 1 and y90[0].startswith(f"| Y90 | {limits['Y90']['limit']:.2f} |") and "| 34.5 - 39.78 |" in y90[0]
-    assert "- Y0: runs perforated from 41" in md
-    # the failure is stored with its settings and model version and reported again, not rerun
-    failed = tmp_path / "runs" / "XY45-v50-v20.0000-k0" / "failed.json"
+    assert len(y90) == 1 and y90[0].startswith(f"| Y90 | {limits['Y90']['probit']['v50']:.2f} [")
+    assert "no fit: held below, perforated above" in [line for line in md.splitlines() if line.startswith("| Y0 |")][0]
+    assert (tmp_path / "pictures" / "v50-Y90.png").stat().st_size > 10000 and "pictures/v50-Y90.png" in md
+    tables = {s: (tmp_path / "v50" / s / "v50.csv").read_text() for s in chapter4.SCENES}
+    # the failures are stored with their settings and model version and reported again, not rerun
+    failed = tmp_path / "v50" / "XY45" / "run_000" / "failed.json"
     assert json.loads(failed.read_text())["error"] == "exit code 1: stand-in failure"
-    monkeypatch.undo()
-    monkeypatch.setattr(runpool, "_command", lambda run, out: (_ for _ in ()).throw(AssertionError(run.key))
-                        if run.key.startswith("XY45") else command(run, out))
-    assert main(["study", "v50", "--out", str(tmp_path), "--jobs", "2", "--tol", "0.5"]) == 1
+    def stored(run, folder):       # a stand-in summary carries no settings: it is reused as it is
+        path = folder / "summary.json"
+        return json.loads(path.read_text()) if path.exists() else real_stored(run, folder)
+    monkeypatch.setattr(runpool, "_stored", stored)
+    monkeypatch.setattr(runpool, "_command", lambda run, out: pytest.fail(f"{run.key} of {run.scene} ran again"))
+    assert main(args) == 1
+    assert {s: (tmp_path / "v50" / s / "v50.csv").read_text() for s in chapter4.SCENES} == tables
 
 
 def test_a_failure_is_stored_but_a_killed_or_interrupted_run_is_not(tmp_path, monkeypatch):

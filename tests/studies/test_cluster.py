@@ -230,25 +230,17 @@ def test_a_study_on_a_local_cluster_runs_each_run_in_a_process_of_a_worker(tmp_p
 
 
 def test_the_ballistic_limits_share_one_cluster_between_their_threads(tmp_path, monkeypatch):
-    """``study v50`` on a LocalCluster with stand-in runs (perforated above 37 m/s; XY45's runs
-    fail): the four scenes' bisections submit from four threads to one client; each scene's band
-    is found as on local processes and XY45's failure is reported (exit 1)."""
+    """``study v50`` on a LocalCluster with the stand-in runs of the process-pool test
+    (:func:`tests.tools.limits.stand_in_limits`): the four scenes' estimates submit from four threads to one
+    client; each scene's estimate is what it is on local processes and XY45's failure is
+    reported (exit 1)."""
     pytest.importorskip("distributed")
+    from tests.tools.limits import check_stand_in_limits, stand_in_limits
 
-    def command(run, out):
-        v = float([o for o in run.overrides if o.startswith("projectile.velocity=")][-1].split("=")[1])
-        if run.key.startswith("XY45"):
-            return [sys.executable, "-c", "import sys; print('stand-in failure'); sys.exit(1)"]
-        summary = dict(residual_velocity=v - 37.0, absorbed_energy=1.0, end_reason="x", perforated=v > 37.0)
-        return [sys.executable, "-c", f"open({str(out / 'summary.json')!r}, 'w').write({json.dumps(summary)!r})"]
-    monkeypatch.setattr(runpool, "_command", command)
+    monkeypatch.setattr(runpool, "_command", stand_in_limits)
     monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
-    assert main(["study", "v50", "--out", str(tmp_path), "--tol", "0.5", "--quiet", "--scheduler", "local:2"]) == 1
-    limits = json.loads((tmp_path / "v50.json").read_text())["v50"]
-    for scene in ("Y90", "XY0", "Y0"):
-        lo, hi = limits[scene]["band"]
-        assert lo <= 37.0 < hi and hi - lo <= 0.5, (scene, limits[scene]["band"])
-    assert "stand-in failure" in limits["XY45"]["error"]
+    assert main(["study", "v50", "--out", str(tmp_path), "--max-runs", "8", "--quiet", "--scheduler", "local:2"]) == 1
+    check_stand_in_limits(json.loads((tmp_path / "v50.json").read_text())["v50"], tmp_path, 8)
 
 
 def test_a_worker_that_cannot_see_the_output_folder_is_refused(tmp_path, capsys):

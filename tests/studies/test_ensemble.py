@@ -113,6 +113,8 @@ def test_members_of_a_strength_scatter_are_seeds_at_the_scenes_velocity(tmp_path
     assert [r["residual_velocity"] for r in rows] == [15.0, 16.0, 17.0]
     assert all("projectile.velocity=57.3" in o and o[0] == "material.scatter=weibull" for o in seen)
     assert sorted(p.name for p in tmp_path.iterdir() if p.is_dir()) == ["seed_5", "seed_6", "seed_7"]
+    assert "the fabrics of scatter seeds from 5" in ensemble.format_summary(ensemble.summarise(rows, first_seed=5))
+    assert "velocity changed by k x 1e-12" in ensemble.format_summary(ensemble.summarise(rows))
 
 
 def test_seeds_without_a_scatter_are_refused(tmp_path):
