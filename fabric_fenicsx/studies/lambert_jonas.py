@@ -1,8 +1,9 @@
 """Residual velocity above the ballistic limit: the Lambert-Jonas law (J. P. Lambert and
 G. H. Jonas, BRL-R-1852, 1976), Vr = a (V^p - Vbl^p)^(1/p) for V > Vbl, 0 below, fitted to the
 perforating runs of a ballistic-limit estimate (``fabric-fenicsx v50``) by scipy's bounded
-least squares, with 95 % intervals of a, p and Vbl from a case-resampling bootstrap (percentile
-intervals of the refits of resampled runs, seeded: the same runs give the same intervals).
+least squares (analytic Jacobian, best of three starts), with 95 % intervals of a, p and Vbl from
+a case-resampling bootstrap (percentile intervals of the refits of resampled runs, each started
+from the fit of all runs, seeded: the same runs give the same intervals).
 A bootstrap because p and Vbl are strongly correlated and their least-squares distribution is
 far from normal with the ten-odd points a study has. Pure numpy/scipy.
 """
@@ -49,21 +50,46 @@ class LambertJonasFit:
         return asdict(self)
 
 
+STARTS = ((0.95, 2.0, 0.5), (0.9, 3.0, 0.9), (0.99, 1.5, 0.2))
+"""Starts of the least squares: (a, p, Vbl as a fraction of the slowest perforation)."""
+
+
+def _jacobian(v, a: float, p: float, vbl: float) -> np.ndarray:
+    """d Vr / d (a, p, Vbl) of :func:`residual_velocity` at the runs above Vbl (0 at or below it)."""
+    d = np.maximum(v ** p - vbl ** p, 0.0)
+    live = d > 0.0
+    jac = np.zeros((v.size, 3))
+    dl, vl = d[live], v[live]
+    root = dl ** (1.0 / p)
+    jac[live, 0] = root
+    dd_dp = vl ** p * np.log(vl) - (vbl ** p * np.log(vbl) if vbl > 0.0 else 0.0)
+    jac[live, 1] = a * root * (-np.log(dl) / p ** 2 + dd_dp / (p * dl))
+    jac[live, 2] = -a * root / dl * vbl ** (p - 1.0)
+    return jac
+
+
 def _fit(v, vr, vbl_max: float, start=None):
-    """Least squares from three starts (and ``start``: a bootstrap refit also starts from the
-    fit), the best of them: one start alone can stay on a flat ridge (Vbl -> 0 with p large)."""
+    """Least squares from the :data:`STARTS`, the best of them: one start alone can stay on a
+    flat ridge (Vbl -> 0 with p large). A bootstrap refit (``start``: the fit of all runs) starts
+    there only, and from the others too where that ends on a bound of p or Vbl."""
     from scipy.optimize import least_squares
 
-    def residuals(x):
-        return residual_velocity(v, *x) - vr
+    lower, upper = (1e-3, P_BOUNDS[0], 0.0), (A_MAX, P_BOUNDS[1], vbl_max)
 
-    starts = [(0.95, 2.0, 0.5 * vbl_max), (0.9, 3.0, 0.9 * vbl_max), (0.99, 1.5, 0.2 * vbl_max)]
-    if start is not None:
-        starts.append((start[0], start[1], min(start[2], vbl_max)))
+    def solve(x0):
+        x0 = np.clip(x0, lower, upper)
+        return least_squares(lambda x: residual_velocity(v, *x) - vr, x0, jac=lambda x: _jacobian(v, *x),
+                             bounds=(lower, upper), x_scale=(1.0, 1.0, max(vbl_max, 1.0)))
+
+    generic = [(a0, p0, f * vbl_max) for a0, p0, f in STARTS]
     best = None
-    for a0, p0, b0 in starts:
-        r = least_squares(residuals, (a0, p0, b0), bounds=((1e-3, P_BOUNDS[0], 0.0), (A_MAX, P_BOUNDS[1], vbl_max)),
-                          x_scale=(1.0, 1.0, max(vbl_max, 1.0)))
+    if start is not None:
+        best = solve((start[0], start[1], min(start[2], vbl_max)))
+        p, vbl = best.x[1:]
+        if not (p >= P_BOUNDS[1] * (1 - 1e-6) or vbl <= 1e-6 * vbl_max or vbl >= vbl_max * (1 - 1e-6)):
+            generic = []
+    for x0 in generic:
+        r = solve(x0)
         if best is None or r.cost < best.cost:
             best = r
     return best.x, float(np.sqrt(2.0 * best.cost / v.size))

@@ -158,3 +158,16 @@ def test_lambert_jonas_recovers_known_parameters_from_noisy_runs():
     assert residual_velocity([30.0, 37.0], 0.9, 2.5, 37.0).tolist() == [0.0, 0.0]
     with pytest.raises(ValueError, match="at least 4 perforating runs"):
         fit_lambert_jonas([50.0, 60.0, 70.0], [20.0, 30.0, 40.0])
+
+
+def test_the_lambert_jonas_jacobian_is_the_derivative_of_the_law():
+    """The analytic d Vr / d (a, p, Vbl) the least squares use, against central differences,
+    above the limit and at it (where the law is flat)."""
+    from fabric_fenicsx.studies.lambert_jonas import _jacobian
+
+    v = np.array([30.0, 38.0, 45.0, 60.0, 90.0, 125.0])
+    for x in ((0.9, 2.2, 37.0), (0.7, 1.3, 20.0), (1.0, 6.0, 35.0)):
+        numeric = np.column_stack([(residual_velocity(v, *(np.add(x, h))) - residual_velocity(v, *(np.subtract(x, h))))
+                                   / 2e-6 for h in np.eye(3) * 1e-6])
+        assert np.allclose(_jacobian(v, *x), numeric, rtol=1e-5, atol=1e-5)
+    assert not _jacobian(v, 0.9, 2.2, 37.0)[0].any()           # below the limit: Vr = 0 whatever the parameters
