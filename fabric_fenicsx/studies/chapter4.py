@@ -20,7 +20,7 @@ from pathlib import Path
 from fabric_fenicsx.studies.runpool import Run
 
 __all__ = ["SCENES", "VELOCITIES", "THESIS", "STUDIES", "FRICTIONS", "FILLETS", "V50_BRACKET", "run_key", "plan",
-           "v50_start", "row", "fmt", "table_md", "variant_md", "checklist", "plot_residual",
+           "member_key", "value", "v50_start", "row", "fmt", "table_md", "variant_md", "checklist", "plot_residual",
            "plot_damage", "incomplete_cases"]
 
 SCENE_DIR = Path(__file__).resolve().parents[2] / "demos" / "scenes"
@@ -77,10 +77,38 @@ def _run(scene: str, v0: float, overrides, friction: float = 0.5, fillet: float 
                (*overrides, *extra))
 
 
-def plan(name: str, overrides=()) -> list[Run]:
-    """The impact runs of study ``name`` known before any has run, every run once: for ``v50``
-    each scene at the thesis's bracket, 34.5 and 39.78 m/s (where its design may start; the
-    design's own runs depend on their outcomes)."""
+def member_key(key: str, i: int) -> str:
+    """The folder of member ``i`` of run ``key`` (member 0 is the run itself)."""
+    return key if i == 0 else f"{key}-m{i}"
+
+
+def _members(run: Run, n: int) -> list[Run]:
+    """Run ``run`` as ``n`` members: with a strength scatter, member i is the fabric of the
+    scene's seed + i; without one, its impact velocity changed by k x 1e-12 of itself
+    (k = 0, 1, -1, 2, ...: :func:`~fabric_fenicsx.studies.ensemble.offsets`)."""
+    from fabric_fenicsx.impact.scene import load_scene
+    from fabric_fenicsx.studies.ensemble import member_velocity, offsets
+
+    if n == 1:
+        return [run]
+    material = load_scene(run.scene, list(run.overrides)).material
+    velocity = [o for o in run.overrides if o.startswith("projectile.velocity=")][-1]
+    v = float(velocity.split("=", 1)[1])
+    members = [run]
+    for i, k in enumerate(offsets(n)[1:], start=1):
+        extra = (f"material.seed={material.seed + i}" if material.scatter != "none"
+                 else f"projectile.velocity={member_velocity(v, k)!r}")
+        members.append(Run(member_key(run.key, i), run.scene, (*run.overrides, extra)))
+    return members
+
+
+def plan(name: str, overrides=(), members: int = 1) -> list[Run]:
+    """The impact runs of study ``name`` known before any has run, every run once, each as
+    ``members`` members (:func:`_members`; the tables, friction and fillet cases are then read
+    as means over them, :func:`value`): for ``v50`` each scene at the thesis's bracket, 34.5
+    and 39.78 m/s (where its design may start; the design's own runs depend on their outcomes)."""
+    if members < 1:
+        raise ValueError(f"a run needs at least one member, got {members}")
     if name not in STUDIES:
         raise ValueError(f"unknown study {name!r}; the studies are {', '.join(STUDIES)}")
     names = [s for s in STUDIES if s != "chapter4"] if name == "chapter4" else [name]
@@ -94,7 +122,7 @@ def plan(name: str, overrides=()) -> list[Run]:
             new = [_run("Y90", 57.3, overrides, fillet=f) for f in FILLETS]
         else:
             new = [_run(s, v, overrides) for s in SCENES for v in VELOCITIES[:2]]
-        runs.update({r.key: r for r in new})
+        runs.update({m.key: m for r in new for m in _members(r, members)})
     return list(runs.values())
 
 
@@ -131,10 +159,41 @@ def row(summary: dict) -> dict:
             "wall_time_s": summary.get("wall_time_s"), "error": summary.get("error")}
 
 
+def value(results: dict, key: str, quantity: str):
+    """:func:`row`'s ``quantity`` of run ``key`` over its members in ``results`` (run key ->
+    summary; ``key``, ``key``-m1, ``key``-m2, ...; failed members left out), as a
+    :class:`~fabric_fenicsx.studies.means.Mean`, or None where no member has it."""
+    from fabric_fenicsx.studies.means import mean_of
+
+    found = [results[k] for k in _member_keys(results, key)]
+    return mean_of(row(s).get(quantity) for s in found)
+
+
+def _member_keys(results: dict, key: str) -> list[str]:
+    prefix = f"{key}-m"
+    return [k for k in results if k == key or (k.startswith(prefix) and k[len(prefix):].isdigit())]
+
+
+def _ends(results: dict, key: str) -> str | None:
+    """How the members of ``key`` ended: the one member's end reason or error, or the counts
+    (``perforated 5, held 3``)."""
+    found = [results[k] for k in _member_keys(results, key)]
+    if len(found) <= 1:
+        r = row(found[0] if found else {})
+        return r["error"] or fmt(r["end_reason"])
+    reasons = [("failed" if "error" in s else str(s.get("end_reason"))) for s in found]
+    return ", ".join(f"{e} {reasons.count(e)}" for e in sorted(set(reasons)))
+
+
 def fmt(x, digits: int = 2, none: str = "-") -> str:
-    """A table cell: floats to ``digits`` decimals, booleans as yes / no, None as ``none``."""
+    """A table cell: floats to ``digits`` decimals, a mean over members with its 95 % interval,
+    booleans as yes / no, None as ``none``."""
+    from fabric_fenicsx.studies.means import Mean
+
     if x is None:
         return none
+    if isinstance(x, Mean):
+        return x.text(digits)
     if isinstance(x, bool):
         return "yes" if x else "no"
     if isinstance(x, float):
@@ -144,7 +203,8 @@ def fmt(x, digits: int = 2, none: str = "-") -> str:
 
 def table_md(scene: str, results: dict) -> str:
     """Markdown table of a scene at the five velocities: ours beside the thesis's (and the
-    experiment's for Y90). ``results``: run key -> summary."""
+    experiment's for Y90). ``results``: run key -> summary; a run with members shows their mean
+    +- its 95 % interval (:func:`value`) and how they ended."""
     ref = THESIS[scene]
     head = ["V0 (m/s)", "residual (m/s)", "thesis", "absorbed (J)", "thesis"]
     if "residual_experiment" in ref:
@@ -154,75 +214,78 @@ def table_md(scene: str, results: dict) -> str:
              "removed cells", "viscous (J)", "end"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for i, v in enumerate(VELOCITIES):
-        s = results.get(run_key(scene, v), {})
-        r = row(s)
+        key = run_key(scene, v)
+        q = (lambda name, digits=2: fmt(value(results, key, name), digits))
         thesis = (lambda k: ref[k][i] if k in ref else None)
-        cells = [f"{v:g}", fmt(r["residual_velocity"]), fmt(thesis("residual")) if ref else "-"]
+        cells = [f"{v:g}", q("residual_velocity"), fmt(thesis("residual")) if ref else "-"]
         if "residual_experiment" in ref:
             cells.append(fmt(thesis("residual_experiment")))
-        cells += [fmt(r["absorbed_energy"]), fmt(thesis("absorbed"))]
+        cells += [q("absorbed_energy"), fmt(thesis("absorbed"))]
         if "absorbed_experiment" in ref:
             cells.append(fmt(thesis("absorbed_experiment")))
-        cells += [" / ".join(fmt(r[k], 1) for k in ("onset_mm", "first_removal_mm", "peak_mm")),
-                  fmt(thesis("deflection_mm")), fmt(r["damage_extent_mm"], 1), fmt(r["removed_cells"]),
-                  fmt(r["viscous"]), r["error"] or fmt(r["end_reason"])]
+        cells += [" / ".join(q(k, 1) for k in ("onset_mm", "first_removal_mm", "peak_mm")),
+                  fmt(thesis("deflection_mm")), q("damage_extent_mm", 1), q("removed_cells", 0),
+                  q("viscous"), _ends(results, key)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def variant_md(results: dict, runs: list[tuple[str, str]]) -> str:
-    """Markdown table of named single runs (label, run key): the friction and fillet studies."""
+    """Markdown table of named runs (label, run key), each a run or the mean over its members:
+    the friction and fillet studies."""
     head = ["case", "residual (m/s)", "absorbed (J)", "onset / max deflection (mm)", "damage starts at r (mm)",
             "damage reach (mm)", "damaged cells", "removed cells", "end"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for label, key in runs:
-        r = row(results.get(key, {}))
-        lines.append("| " + " | ".join([label, fmt(r["residual_velocity"]), fmt(r["absorbed_energy"]),
-                                        f"{fmt(r['onset_mm'], 1)} / {fmt(r['peak_mm'], 1)}",
-                                        fmt(r["onset_radius_mm"], 1), fmt(r["damage_extent_mm"], 1),
-                                        fmt(r["damaged_cells"]), fmt(r["removed_cells"]),
-                                        r["error"] or fmt(r["end_reason"])]) + " |")
+        q = (lambda name, digits=2: fmt(value(results, key, name), digits))
+        lines.append("| " + " | ".join([label, q("residual_velocity"), q("absorbed_energy"),
+                                        f"{q('onset_mm', 1)} / {q('peak_mm', 1)}",
+                                        q("onset_radius_mm", 1), q("damage_extent_mm", 1),
+                                        q("damaged_cells", 0), q("removed_cells", 0), _ends(results, key)]) + " |")
     return "\n".join(lines)
 
 
-def checklist(results: dict, waves: dict | None = None) -> list[tuple[str, bool | None, str]]:
-    """The thesis's qualitative findings (Sec. 4.3-4.5), each (finding, holds, the numbers);
-    holds is None where a run is missing. ``waves``: ``{"measured": ..., "expected": ...}``
-    with the warp and fill wave speeds (:mod:`fabric_fenicsx.studies.waves`)."""
+def checklist(results: dict, waves: dict | None = None) -> list[tuple[str, object, str]]:
+    """The thesis's qualitative findings (Sec. 4.3-4.5), each (finding, holds, the numbers).
+    holds: True or False; :data:`~fabric_fenicsx.studies.means.UNTOLD` where the runs have
+    members and their means cannot be told apart (Welch, 95 %); None where a run is missing.
+    ``waves``: ``{"measured": ..., "expected": ...}`` with the warp and fill wave speeds
+    (:mod:`fabric_fenicsx.studies.waves`)."""
+    from fabric_fenicsx.studies.means import UNTOLD, all_of, larger
+
     def get(key, q):
-        return row(results.get(key, {})).get(q)
+        return value(results, key, q)
 
     out = []
     pairs = [(get(run_key("Y90", v), "absorbed_energy"), get(run_key("XY0", v), "absorbed_energy")) for v in VELOCITIES]
-    ok = [a > b for a, b in pairs if a is not None and b is not None]
-    out.append(("two-edge clamping (Y90) absorbs more than four-edge clamping (XY0)",
-                None if len(ok) < len(pairs) else all(ok),
-                f"at {sum(ok)} of {len(pairs)} velocities; Y90 / XY0 absorbed (J): "
+    answers = [larger(a, b) for a, b in pairs]
+    out.append(("two-edge clamping (Y90) absorbs more than four-edge clamping (XY0)", all_of(answers),
+                f"at {answers.count(True)} of {len(pairs)} velocities" + _untold(answers) + "; Y90 / XY0 absorbed (J): "
                 + ", ".join(f"{fmt(a)} / {fmt(b)}" for a, b in pairs)))
     trip = [(get(run_key("XY45", v), "absorbed_energy"), get(run_key("XY0", v), "absorbed_energy"),
              get(run_key("XY45", v), "peak_mm"), get(run_key("XY0", v), "peak_mm")) for v in VELOCITIES]
-    ok = [a > b and c > d for a, b, c, d in trip if None not in (a, b, c, d)]
-    out.append(("45 degrees (XY45) absorbs more than 0 degrees (XY0) and deflects more",
-                None if len(ok) < len(trip) else all(ok),
-                f"both at {sum(ok)} of {len(trip)} velocities; XY45 / XY0 absorbed (J), largest deflection (mm): "
+    answers = [all_of([larger(a, b), larger(c, d)]) for a, b, c, d in trip]
+    out.append(("45 degrees (XY45) absorbs more than 0 degrees (XY0) and deflects more", all_of(answers),
+                f"both at {answers.count(True)} of {len(trip)} velocities" + _untold(answers)
+                + "; XY45 / XY0 absorbed (J), largest deflection (mm): "
                 + ", ".join(f"{fmt(a)} / {fmt(b)}, {fmt(c, 1)} / {fmt(d, 1)}" for a, b, c, d in trip)))
-    reach = {k: get(k, "damage_extent_mm") for k in (run_key("Y90", 57.3, friction=0.1), run_key("Y90", 57.3),
-                                                      run_key("Y90", 57.3, friction=2.0),
-                                                      run_key("Y90", 57.3, fillet=0.8e-3), run_key("XY0", 57.3))}
-    r01, r05, r2, rf, rxy = reach.values()
+    r01, r05, r2, rf, rxy = (get(k, "damage_extent_mm") for k in (
+        run_key("Y90", 57.3, friction=0.1), run_key("Y90", 57.3), run_key("Y90", 57.3, friction=2.0),
+        run_key("Y90", 57.3, fillet=0.8e-3), run_key("XY0", 57.3)))
+    parts = {"further with friction 0.1": larger(r01, r05), "with the fillet": larger(rf, r05),
+             "closer with friction 2.0": larger(r05, r2), "clamped all round": larger(r05, rxy)}
+    holds = all_of(parts.values())
     out.append(("low friction (0.1) and a 0.8 mm fillet spread damage further than friction 0.5 with a sharp edge; "
-                "friction 2.0 and four-edge clamping keep it closer",
-                None if None in reach.values() else (r01 > r05 and rf > r05 and r2 < r05 and rxy < r05),
+                "friction 2.0 and four-edge clamping keep it closer", holds,
                 "damage reach at 57.3 m/s (mm): Y90 friction 0.1 / 0.5 / 2.0: "
                 f"{fmt(r01, 1)} / {fmt(r05, 1)} / {fmt(r2, 1)}; 0.8 mm fillet {fmt(rf, 1)}; XY0 {fmt(rxy, 1)}"
-                + ("" if None in reach.values() else
-                   f" (further with friction 0.1: {fmt(r01 > r05)}, with the fillet: {fmt(rf > r05)}; "
-                   f"closer with friction 2.0: {fmt(r2 < r05)}, clamped all round: {fmt(rxy < r05)})")))
+                + ("" if holds is None else " (" + ", ".join(
+                    f"{what}: {UNTOLD if a == UNTOLD else fmt(a)}" for what, a in parts.items()) + ")")))
     sharp, round2 = get(run_key("Y90", 57.3), "absorbed_energy"), get(run_key("Y90", 57.3, fillet=2e-3), "absorbed_energy")
-    ratio = None if None in (sharp, round2) or not sharp else round2 / sharp
+    ratio, holds = _fillet_ratio(round2, sharp)
     out.append(("the 2 mm fillet lets the projectile through with about half the absorbed energy of the sharp "
-                "edge (ratio 0.35-0.65)", None if ratio is None else 0.35 <= ratio <= 0.65,
-                f"absorbed 2 mm fillet / sharp: {fmt(round2)} / {fmt(sharp)} J = {fmt(ratio, 2)}"))
+                "edge (ratio 0.35-0.65)", holds,
+                f"absorbed 2 mm fillet / sharp: {fmt(round2)} / {fmt(sharp)} J = {ratio}"))
     w = (waves or {}).get("measured") or {}
     e = (waves or {}).get("expected") or {}
     speeds = None if w.get("warp") is None or w.get("fill") is None else (w["warp"], w["fill"])
@@ -234,9 +297,35 @@ def checklist(results: dict, waves: dict | None = None) -> list[tuple[str, bool 
     return out
 
 
+def _untold(answers) -> str:
+    from fabric_fenicsx.studies.means import UNTOLD
+
+    n = sum(a == UNTOLD for a in answers)
+    return f" ({n} not told apart by the members)" if n else ""
+
+
+def _fillet_ratio(round2, sharp) -> tuple[str, object]:
+    """The absorbed energy's ratio 2 mm fillet / sharp edge as text, and whether it lies in
+    0.35-0.65: for means over members, whether its 95 % interval (the delta method on the two
+    independent means) lies inside (True), outside (False) or across an end (untold)."""
+    import math
+
+    from fabric_fenicsx.studies.means import UNTOLD
+
+    if round2 is None or sharp is None or not sharp.mean:
+        return "-", None
+    ratio = round2.mean / sharp.mean
+    if round2.half_width is None or sharp.half_width is None:
+        return f"{ratio:.2f}", 0.35 <= ratio <= 0.65
+    half = abs(ratio) * math.hypot(round2.half_width / round2.mean, sharp.half_width / sharp.mean)
+    lo, hi = ratio - half, ratio + half
+    holds = True if 0.35 <= lo and hi <= 0.65 else False if hi < 0.35 or lo > 0.65 else UNTOLD
+    return f"{ratio:.2f} +- {half:.2f}", holds
+
+
 def plot_residual(results: dict, path: str | Path) -> None:
-    """Residual against impact velocity for the four scenes, with the thesis's (and the
-    experiment's) points (PNG)."""
+    """Residual against impact velocity for the four scenes (the mean over a run's members with
+    its 95 % interval), with the thesis's (and the experiment's) points (PNG)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -245,10 +334,11 @@ def plot_residual(results: dict, path: str | Path) -> None:
     ax.plot(VELOCITIES, VELOCITIES, ":", color="0.6", label="no fabric")
     for i, scene in enumerate(SCENES):
         c = f"C{i}"
-        pts = [(v, row(results.get(run_key(scene, v), {}))["residual_velocity"]) for v in VELOCITIES]
-        pts = [p for p in pts if p[1] is not None]
+        pts = [(v, value(results, run_key(scene, v), "residual_velocity")) for v in VELOCITIES]
+        pts = [(v, m.mean, m.half_width or 0.0) for v, m in pts if m is not None]
         if pts:
-            ax.plot(*zip(*pts), "o-", color=c, label=f"{scene}, this model")
+            v, mean, half = zip(*pts)
+            ax.errorbar(v, mean, yerr=half, fmt="o-", color=c, capsize=3, label=f"{scene}, this model")
         ref = THESIS[scene]
         for key, marker, what in (("residual", "s", "thesis"), ("residual_experiment", "^", "experiment")):
             if key in ref:

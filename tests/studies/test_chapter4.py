@@ -100,6 +100,69 @@ def test_the_checklist_answers_from_the_numbers():
     assert chapter4.checklist(results)[1][1] is None
 
 
+def test_members_of_a_run_are_round_off_twins_or_seeds_and_are_read_as_means():
+    runs = {r.key: r for r in chapter4.plan("fillet", ("run.t_end=1e-3",), members=3)}
+    assert len(runs) == 9 and {"Y90-v57.3", "Y90-v57.3-m1", "Y90-v57.3-m2", "Y90-v57.3-fillet2mm-m2"} <= set(runs)
+    assert runs["Y90-v57.3-m1"].overrides[-1] == f"projectile.velocity={57.3 * (1 + 1e-12)!r}"
+    assert runs["Y90-v57.3-m2"].overrides[-1] == f"projectile.velocity={57.3 * (1 - 1e-12)!r}"
+    assert runs["Y90-v57.3"] == chapter4.plan("fillet", ("run.t_end=1e-3",))[0]      # member 0: the run itself
+    seeds = {r.key: r for r in chapter4.plan("fillet", ("material.scatter=weibull", "material.seed=7"), members=3)}
+    assert seeds["Y90-v57.3-m2"].overrides[-1] == "material.seed=9" and "projectile.velocity=57.3" in seeds[
+        "Y90-v57.3-m2"].overrides
+    with pytest.raises(ValueError, match="at least one member"):
+        chapter4.plan("fillet", members=0)
+    results = {"Y90-v57.3": _summary(40.0), "Y90-v57.3-m1": _summary(42.0), "Y90-v57.3-m2": _summary(44.0),
+               "Y90-v57.3-m3": {"error": "exit code 1"}, "Y90-v57.3-mu2": _summary(1.0)}
+    m = chapter4.value(results, "Y90-v57.3", "absorbed_energy")
+    assert (m.mean, m.n) == (42.0, 3) and m.half_width == pytest.approx(4.303 * 2.0 / 3 ** 0.5, rel=1e-3)
+    assert chapter4.fmt(m) == "42.00 +- 4.97 (n 3)" and chapter4.value(results, "XY0-v57.3", "absorbed_energy") is None
+    assert chapter4.value(results, "Y90-v57.3-mu2", "absorbed_energy").text() == "1.00"
+
+
+def test_a_finding_from_members_holds_fails_or_cannot_be_told():
+    from fabric_fenicsx.studies.means import UNTOLD, larger, mean_of
+
+    def members(key, absorbed):
+        return {chapter4.member_key(key, i): _summary(a, reach=0.05 if key.startswith("Y90") else 0.02)
+                for i, a in enumerate(absorbed)}
+
+    def first_finding(y90, xy0):
+        results = {}
+        for v in chapter4.VELOCITIES:
+            results |= members(chapter4.run_key("Y90", v), y90) | members(chapter4.run_key("XY0", v), xy0)
+        return chapter4.checklist(results)[0]
+
+    assert first_finding([40.0, 41.0, 39.0], [30.0, 31.0, 29.0])[1] is True
+    assert first_finding([30.0, 31.0, 29.0], [40.0, 41.0, 39.0])[1] is False
+    finding, holds, numbers = first_finding([40.0, 30.0, 35.0], [38.0, 29.0, 33.0])
+    assert holds == UNTOLD and "5 not told apart" in numbers and "35.00 +- " in numbers
+    assert larger(mean_of([2.0]), mean_of([1.0])) is True and larger(mean_of([1.0]), None) is None
+    assert larger(mean_of([1.0, 1.0]), mean_of([1.0, 1.0])) == UNTOLD
+
+
+def test_the_study_reports_a_case_with_members_as_their_mean(tmp_path, monkeypatch):
+    """``study fillet --members 2`` with stand-in runs whose absorbed energy is the velocity's
+    12th digit made visible (40 J at V0, 42 J at V0 (1 + 1e-12)): each case's row is the mean +-
+    its interval over its two members."""
+    from fabric_fenicsx.cli import main
+    from fabric_fenicsx.studies import runpool
+
+    def command(run, out):
+        v = float([o for o in run.overrides if o.startswith("projectile.velocity=")][-1].split("=")[1])
+        summary = dict(residual_velocity=30.0, absorbed_energy=40.0 if v == 57.3 else 42.0, end_reason="perforated",
+                       perforated=True)
+        return [sys.executable, "-c", f"import json; open({str(out / 'summary.json')!r}, 'w').write({json.dumps(summary)!r})"]
+    monkeypatch.setattr(runpool, "_command", command)
+    monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
+    assert main(["study", "fillet", "--members", "2", "--out", str(tmp_path), "--jobs", "2", "--quiet"]) == 0
+    md = (tmp_path / "fillet.md").read_text()
+    rows = [line for line in md.splitlines() if line.startswith("| Y90, fillet ")]
+    assert len(rows) == 3 and all("| 30.00 +- 0.00 (n 2) | 41.00 +- 12.71 (n 2) |" in line and "perforated 2" in line for line in rows)
+    assert "Every case ran as 2 members" in md
+    assert len(json.loads((tmp_path / "fillet.json").read_text())["runs"]) == 6
+    assert main(["study", "fillet", "--members", "0", "--out", str(tmp_path / "x")]) == 2
+
+
 def test_runs_in_parallel_equal_the_serial_ones_and_are_reused(tmp_path):
     scene = str(chapter4.SCENE_DIR / "y90.toml")
     runs = [Run("a", scene, (*TINY, "projectile.velocity=20.0")), Run("b", scene, (*TINY, "projectile.velocity=60.0"))]
