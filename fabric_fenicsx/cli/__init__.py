@@ -1,4 +1,4 @@
-"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence | divergence | ensemble | v50 | study ...``.
+"""Command line: ``fabric-fenicsx static | surrogate | impact | convergence | divergence | ensemble | v50 | ladder | study ...``.
 
 Each subcommand's module is imported only when it runs, so the material-point scenes
 never import DOLFINx.
@@ -26,6 +26,9 @@ SUBCOMMANDS = {
                  "a scene run N times with round-off-sized changes: its answer as mean, interval and range"),
     "v50": ("fabric_fenicsx.cli.v50",
             "the ballistic limit as a statistic: sequential runs, probit V50 with its interval, Lambert-Jonas"),
+    "ladder": ("fabric_fenicsx.cli.ladder",
+               "error against run time of the impact statistics: V50 and a mean residual velocity on mesh "
+               "sizes, families and knob variants"),
     "study": ("fabric_fenicsx.cli.study",
               "the thesis's chapter 4: Tables 4-6, friction, fillet, ballistic limit, validation report"),
 }

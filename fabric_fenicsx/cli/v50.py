@@ -23,9 +23,11 @@ from pathlib import Path
 PROG = "fabric-fenicsx v50"
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
+def add_estimate_arguments(parser: argparse.ArgumentParser, name: str) -> None:
+    """The arguments a command that estimates V50 shares with this one: SCENE, --out (default
+    out/``name``-<scene name>), --set, --ci, --max-runs, --jobs, --bracket."""
     parser.add_argument("scene", help="scene TOML file (e.g. demos/scenes/y90.toml)")
-    parser.add_argument("--out", default=None, help="output folder (default out/v50-<scene name>)")
+    parser.add_argument("--out", default=None, help=f"output folder (default out/{name}-<scene name>)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a scene key of every run (repeatable)")
     parser.add_argument("--ci", type=float, default=2.0,
@@ -36,6 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "worker threads)")
     parser.add_argument("--bracket", default="20,60", metavar="LO,HI",
                         help="where the design starts (m/s, default 20,60); it widens if it must")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_estimate_arguments(parser, "v50")
     parser.add_argument("--resolution", type=float, default=0.01,
                         help="velocities are rounded to this (m/s, default 0.01)")
     parser.add_argument("--seeds", type=int, default=1, metavar="FIRST",
@@ -46,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_scheduler_argument(parser, "runs")
 
 
-def _problems(args) -> list[str]:
+def estimate_problems(args) -> list[str]:
+    """What is wrong with the arguments of :func:`add_estimate_arguments` (and --scheduler)."""
     from fabric_fenicsx.studies.executor import scheduler_problem
 
     problems = []
@@ -62,12 +69,17 @@ def _problems(args) -> list[str]:
         problems.append(f"--max-runs must be at least 2 (a held and a perforating run), got {args.max_runs}")
     if args.jobs is not None and args.jobs < 1:
         problems.append(f"--jobs must be at least 1, got {args.jobs}")
+    if scheduler_problem(args.scheduler):
+        problems.append(scheduler_problem(args.scheduler))
+    return problems
+
+
+def _problems(args) -> list[str]:
+    problems = estimate_problems(args)
     if not 0 < args.resolution <= 1.0:
         problems.append(f"--resolution must lie in (0, 1] m/s, got {args.resolution}")
     if args.seeds < 0:
         problems.append(f"--seeds must be a seed >= 0, got {args.seeds}")
-    if scheduler_problem(args.scheduler):
-        problems.append(scheduler_problem(args.scheduler))
     return problems
 
 
