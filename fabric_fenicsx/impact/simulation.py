@@ -449,17 +449,20 @@ class ImpactSimulation:
         kinetic = energy.kinetic + KE_p
         W_el = energy.internal - ledger.viscous - energy.dissipated
         moved = maxima["attached_displacement"]
+        reach = trouble.attached_reach(sc.mesh.side, self.removal.erosion_strain)
         tripped = [what for bad, what in (
             (kinetic > _BLOW_UP_ENERGY * self.KE0,
              f"kinetic energy {kinetic:.4g} J > {_BLOW_UP_ENERGY:g} x the impact energy KE_0 = "
              f"{self.KE0:.4g} J"),
             (W_el < -_NEGATIVE_WORK * self.KE0,
              f"the yarns gave back {-W_el:.4g} J more than they received (> {_NEGATIVE_WORK:g} KE_0)"),
-            (moved > sc.mesh.side,
-             f"fabric attached to a clamped edge moved {moved:.4g} m, more than the fabric's side "
-             f"{sc.mesh.side:g} m")) if bad]
+            (moved > reach,
+             f"fabric attached to a clamped edge moved {moved:.4g} m, farther than it can reach "
+             f"({reach:.4g} m: {'the fabric side' if self.removal.erosion_strain is None else 'two fabric sides at the erosion strain, and back'})")) if bad]
         if tripped:
-            raise ImpactError(self._trouble(loop.step, t_n, "blow-up: " + "; ".join(tripped)))
+            attached = self.removal.live_nodes & ~self.removal.free_nodes
+            raise ImpactError(self._trouble(loop.step, t_n, "blow-up: " + "; ".join(tripped),
+                                            among=attached if moved > reach else None))
         if ledger.error_now > sc.run.energy_tolerance:
             raise ImpactError(self._trouble(
                 loop.step, t_n, f"energy balance error {ledger.error_now:.3%} > run.energy_tolerance = "
@@ -538,12 +541,15 @@ class ImpactSimulation:
         t_n, u, v = self.cd.evaluated_state()
         self.output.frame(t_n, u, v, self.point_fields(), self.live_cells)
 
-    def _trouble(self, step: int, t: float, what: str, component: str = "membrane") -> str:
+    def _trouble(self, step: int, t: float, what: str, component: str = "membrane", among=None) -> str:
         """A message naming step, time, the component that failed (membrane, unit cell, table
-        tile), place, the step the run used and what can help (:mod:`.trouble`)."""
+        tile), place (the node that moved most, among the owned nodes of the mask ``among`` if
+        given: the attached fabric), the step the run used and what can help (:mod:`.trouble`)."""
         cache = self.surrogate.cache_dir if self.surrogate is not None else "the surrogate cache"
+        where = trouble.place(self.cd.u.reshape(-1, 3)[:self.n_nodes], self.X, self.comm.rank, among,
+                              "the attached fabric" if among is not None else "")
         return (f"impact run stopped at step {step}, t = {t:.6e} s: in the {component}: {what}; "
-                f"{trouble.place(self.cd.u.reshape(-1, 3), self.X, self.comm.rank)}; "
+                f"{where}; "
                 f"dt = {self.cd._dt_prev:.3e} s, projectile at z = {self.state.z:.4e} m moving "
                 f"{-self.state.vz:.3f} m/s. {trouble.fixes(component, cache)}; see "
                 f"{self.out_dir / 'history.csv'}")

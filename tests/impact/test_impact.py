@@ -457,6 +457,26 @@ def test_trouble_stops_with_step_place_and_fix(tmp_path):
         run_impact(tiny(["run.energy_tolerance=1e-9"]), tmp_path / "out", verbose=False)
 
 
+def test_the_attached_fabric_may_swing_as_far_as_a_torn_piece_can_reach_and_the_message_names_it():
+    """A piece torn from one clamp hangs from the other and swings: the blow-up test allows two
+    fabric sides stretched to the erosion strain, and back (without removal, the side), and the
+    message names the attached node that moved most, not a node of a removed cell flying away."""
+    from fabric_fenicsx.impact import trouble
+
+    assert trouble.attached_reach(0.27305, None) == 0.27305
+    assert trouble.attached_reach(0.27305, 1.0) == pytest.approx(2 * 0.27305 * (1 + 3 ** 0.5))
+    assert trouble.attached_reach(0.1, 0.0) == pytest.approx(0.4)            # no stretch: there and back
+    u = np.array([[0.0, 0.0, -0.1], [0.5, 0.6, -0.7], [0.0, 0.3, 0.0]])
+    X = np.array([[0.0, 0.0, 0.0], [0.01, 0.02, 0.0], [0.03, -0.12, 0.0]])
+    assert "largest displacement [ 0.5  0.6 -0.7] m at reference (x, y) = [0.01 0.02]" in trouble.place(u, X, 0)
+    attached = np.array([True, False, True])
+    line = trouble.place(u, X, 0, attached, "the attached fabric")
+    assert "of the attached fabric [0.  0.3 0. ] m at reference (x, y) = [ 0.03 -0.12]" in line
+    assert trouble.place(u, X, 0, np.zeros(3, bool), "attached nodes") == "no owned attached nodes on rank 0"
+    u[0, 2] = np.nan
+    assert "first non-finite node at reference (x, y) = [0. 0.]" in trouble.place(u, X, 0, attached)
+
+
 def test_chatter_statistics():
     t = np.arange(0, 100e-6, 0.1e-6)
     f = np.where(t > 10e-6, 100.0, 0.0)
