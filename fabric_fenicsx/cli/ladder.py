@@ -180,6 +180,8 @@ def _markdown(rep: dict, name: str) -> str:
         return "-" if x is None else f"{x:.{digits}f}"
 
     def diff(d):
+        if d.get("size") is not None and d.get("size") == d.get("finest"):
+            return "reference"
         if d.get("difference") is None:
             return "-"
         agree = {True: "agree", False: "differ", None: "-"}[d.get("agree")]
@@ -218,9 +220,16 @@ def _markdown(rep: dict, name: str) -> str:
             cells = [diff(at[s]) + ("" if at[s].get("within_interval") is None else
                                     ", within" if at[s]["within_interval"] else ", beyond") for s in ("v50", "residual_velocity")]
             lines.append(f"| {v[0]} | {v[1]} | {v[2] * 1e3:g} | {cells[0]} | {cells[1]} |")
-    best = rep["recommended_size"]
+    best, finest = rep["recommended_size"], min(e["size"] for e in errors)
+    if best is None:
+        verdict = "none: the finest size has no interval in some family"
+    elif best == finest:
+        verdict = (f"none coarser than the finest ({finest * 1e3:g} mm) agrees with it, so this ladder does not show "
+                   "convergence: add a finer size")
+    else:
+        verdict = f"{best * 1e3:g} mm (against the finest, {finest * 1e3:g} mm)"
     lines += ["", "Recommended size (the coarsest whose estimates agree with the finest's in every family, as do "
-              "those between): " + ("none: the finest has no interval" if best is None else f"{best * 1e3:g} mm"), "",
+              "those between): " + verdict, "",
               "What an interval costs (runs scaled from the width each rung reached, as 1 / sqrt(runs)):", "",
               "| rung | statistic | 95 % width (m/s) | runs | core-hours |", "|---|---|---|---|---|"]
     for w, items in rep["cost"].items():

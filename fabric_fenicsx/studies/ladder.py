@@ -188,7 +188,8 @@ def plot(analysis: dict, path, title: str = "") -> None:
                 ax.annotate(f"{e['size'] * 1e3:g} mm", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_xlabel("core-hours of the estimate")
-        ax.set_ylabel(f"{names[stat]}: error against the finest (m/s)")
+        ax.set_title(names[stat], fontsize=10)
+        ax.set_ylabel("error against the finest size (m/s)")
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=7)
         else:

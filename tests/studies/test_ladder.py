@@ -97,7 +97,8 @@ def test_the_command_on_stand_in_runs(tmp_path, monkeypatch, capsys):
     assert err[("graded", 0.004, "residual_velocity")]["agree"] is False      # 6 m/s off, intervals of ~0.5 m/s
     assert rep["recommended_size"] == 0.001
     md = (out / "ladder.md").read_text()
-    assert "| graded-1mm-run.damping=0.05 |" in md and "Recommended size" in md and "1 mm" in md
+    assert "| graded-1mm-run.damping=0.05 |" in md and "| graded | 1 | reference | reference |" in md
+    assert "none coarser than the finest (1 mm) agrees with it" in md
     assert (out / "ladder.png").stat().st_size > 10000
     assert len((out / "ladder.csv").read_text().splitlines()) == 7
     assert (out / "aligned-4mm" / "v50" / "v50.csv").exists() and (out / "aligned-4mm" / "members").is_dir()
