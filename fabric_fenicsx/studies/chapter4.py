@@ -128,9 +128,9 @@ def plan(name: str, overrides=(), members: int = 1) -> list[Run]:
 
 def v50_start(scene: str, results: dict, default: tuple = V50_BRACKET) -> tuple[float, float]:
     """Where the design of ``scene``'s ballistic limit starts (m/s): the highest of the table's
-    velocities up to which every table run held, and the next one, whose run perforated; else ``default`` (the lowest table run
-    perforated, or a run is missing or failed before the first perforation). ``results``: run
-    key -> summary."""
+    velocities up to which every table run held, and the next one, whose run perforated; else
+    ``default`` (the lowest table run perforated, or a run is missing or failed before the first
+    perforation). ``results``: run key -> summary."""
     held = None
     for v in VELOCITIES:
         s = results.get(run_key(scene, v), {})
