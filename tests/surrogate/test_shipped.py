@@ -86,9 +86,11 @@ def test_a_shipped_tile_is_read_when_the_cache_is_empty(tmp_path):
     name = sur._tile_name("intact", a, b)                     # and copied into the cache
     copied = tiles.load_tile(sur.cache_dir / f"{name}.npz", sur.key, (sur.tile, sur.tile, 6), name)
     np.testing.assert_array_equal(copied, _shipped_values(sur, "intact", a, b))
-    # the switch: without the shipped tiles the same tile is solved (and equals them)
+    # the switch: without the shipped tiles the same tile is solved (and equals them to the
+    # round-off of the solver on another CPU: 1e-14 measured)
     solved = _table(cache_dir=tmp_path / "other", shipped=False)
-    np.testing.assert_array_equal(solved.evaluate(E1, E2, 1.0, 1.0, tension_only=False), (P1, P2, mu1, mu2))
+    np.testing.assert_allclose(solved.evaluate(E1, E2, 1.0, 1.0, tension_only=False), (P1, P2, mu1, mu2),
+                               rtol=1e-12)
     assert solved.solves == sur.tile ** 2
 
 
