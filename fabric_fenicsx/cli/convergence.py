@@ -1,5 +1,5 @@
 """``fabric-fenicsx convergence``: error against run time of each discretisation knob
-(docs/convergence.md).
+(docs/convergence/discretisation.md).
 
 The command runs (or reuses) the impact ladders, the unit-cell ladder and the run-to-run
 scatter of :mod:`fabric_fenicsx.studies.convergence`, analyses them and writes the tables,
@@ -48,6 +48,15 @@ def _knobs(text: str) -> list[str]:
     return k
 
 
+def _cases(text: str) -> list[str]:
+    """Comma-separated cases of the impact ladders (argparse type)."""
+    c = [x.strip() for x in text.split(",") if x.strip()]
+    bad = sorted(set(c) - set(cv.CASES))
+    if bad or not c:
+        raise argparse.ArgumentTypeError(f"unknown case(s) {bad or text!r}; valid: {', '.join(cv.CASES)}")
+    return c
+
+
 def _dt_mesh(text: str) -> tuple[str | None, float]:
     """``H`` (every case) or ``CASE=H``: the h_centre (mm) of a dt ladder (argparse type)."""
     case, sep, rest = text.rpartition("=")
@@ -71,7 +80,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``fabric-fenicsx convergence``."""
     parser.add_argument("--out", help="folder of run folders, CSVs and plots (default docs/convergence; "
                         "out/convergence-quick with --quick)")
-    parser.add_argument("--doc", help="report file (default docs/convergence.md; OUT/convergence.md with --quick)")
+    parser.add_argument("--doc", help="report file (default docs/convergence/discretisation.md; OUT/convergence.md "
+                        "with --quick)")
+    parser.add_argument("--cases", type=_cases, default=["elastic"],
+                        help="impact ladders of these cases (default elastic: damage off, a run repeats; "
+                             f"valid: {', '.join(cv.CASES)}). After damage a run is one draw of a distribution: "
+                             "its statistics converge, which `fabric-fenicsx ladder` measures (docs/convergence.md)")
     parser.add_argument("--only", type=_knobs, default=list(KNOBS),
                         help=f"comma-separated knobs to compute (default all: {','.join(KNOBS)}); the report "
                              "includes every knob whose results are already stored")
@@ -105,7 +119,9 @@ def _ladders(args: argparse.Namespace) -> tuple[dict[str, list[float]], list[flo
     dt_mesh = dict(cv.DT_MESH_MM) if not args.quick else {c: 8.0 for c in cv.CASES}
     for case, h in args.dt_mesh:
         dt_mesh.update({case: h} if case else {c: h for c in cv.CASES})
-    return levels, safeties, dt_mesh
+    cases = getattr(args, "cases", list(cv.CASES))
+    return ({c: v for c, v in levels.items() if c in cases}, safeties,
+            {c: h for c, h in dt_mesh.items() if c in cases})
 
 
 def _check_ladders(levels: dict, safeties) -> None:
@@ -236,7 +252,7 @@ def _scatter(args: argparse.Namespace, runs_dir: Path, records) -> dict[float, l
     ``--quick``) the unperturbed run of the mesh ladder and one run per perturbation, run (or
     reused) if asked for, else those stored."""
     scatter: dict[float, list[cv.RunRecord]] = {}
-    asked = "scatter" in args.only
+    asked = "scatter" in args.only and "damaged" in getattr(args, "cases", cv.CASES)
     for h in (x * 1e-3 for x in ([] if args.quick else cv.SCATTER_LEVELS_MM)):
         base = [r for k, r in records if k == "mesh" and r.case == "damaged" and math.isclose(r.h_centre, h)
                 and r.dt_safety == cv.DEFAULT_SAFETY]
@@ -266,7 +282,7 @@ def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.studies.convergence_report import write_report
 
     out = Path(args.out or ("out/convergence-quick" if args.quick else "docs/convergence"))
-    doc = Path(args.doc or (out / "convergence.md" if args.quick else "docs/convergence.md"))
+    doc = Path(args.doc or (out / "convergence.md" if args.quick else out / "discretisation.md"))
     levels, safeties, dt_mesh = _ladders(args)
     _check_ladders(levels, safeties)
     out.mkdir(parents=True, exist_ok=True)

@@ -1,5 +1,5 @@
 """``fabric-fenicsx convergence``: error against run time for each discretisation knob
-(docs/convergence.md).
+(docs/convergence/discretisation.md).
 
 Knobs and the quantities a user reads:
 
@@ -12,13 +12,13 @@ Knobs and the quantities a user reads:
   (elastic rebound), against the finest level and a Richardson extrapolation.
 
 The command writes the run folders, CSV tables and log-log plots under ``--out`` and the
-report ``--doc`` (default ``docs/convergence.md``). Each impact run has its own folder; a run
+report ``--doc`` (default ``docs/convergence/discretisation.md``). Each impact run has its own folder; a run
 whose ``summary.json`` (or recorded ``error.json``) exists with the same scene settings is not
 run again, so an interrupted study resumes where it stopped.
 
 The pure helpers (observed order, Richardson extrapolation, the "cheapest within 2 %" rule)
 come first and import nothing heavy; DOLFINx is imported only when an impact run starts. This
-module runs and analyses; the report (tables, plots, ``docs/convergence.md``) is written by
+module runs and analyses; the report (tables, plots, ``docs/convergence/discretisation.md``) is written by
 :mod:`fabric_fenicsx.studies.convergence_report`, which imports this module's names, and the
 command (options, resuming, the order of the steps) is :mod:`fabric_fenicsx.cli.convergence`,
 which imports both.
@@ -385,15 +385,16 @@ def plan(knobs, mesh_levels_mm: dict, safeties, dt_mesh_mm: dict) -> list[tuple[
     """The impact runs of the study as (knob, case, h_centre in m, dt_safety), in the order that
     keeps an interrupted study most useful: first the three coarsest levels of every ladder
     (enough for an observed order), cheapest first; then the further mesh levels, level by level;
-    then the further dt levels. ``mesh_levels_mm`` maps each case to its h_centre ladder in mm."""
+    then the further dt levels. ``mesh_levels_mm`` maps each case to its h_centre ladder in mm,
+    ``dt_mesh_mm`` each case to the h_centre of its dt ladder; a case in neither is not run."""
     runs = []
     if "mesh" in knobs:
-        for case in CASES:
-            for i, h in enumerate(sorted(mesh_levels_mm.get(case, ()), reverse=True)):
+        for case in (c for c in CASES if c in mesh_levels_mm):
+            for i, h in enumerate(sorted(mesh_levels_mm[case], reverse=True)):
                 runs.append(((0 if i < 3 else 1, i, _cost_guess(case, h, DEFAULT_SAFETY)),
                              ("mesh", case, h * 1e-3, DEFAULT_SAFETY)))
     if "dt" in knobs:
-        for case in CASES:
+        for case in (c for c in CASES if c in dt_mesh_mm):
             for i, s in enumerate(sorted(safeties, reverse=True)):
                 runs.append(((0 if i < 3 else 2, i, _cost_guess(case, dt_mesh_mm[case], s)),
                              ("dt", case, dt_mesh_mm[case] * 1e-3, s)))

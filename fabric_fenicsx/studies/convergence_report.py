@@ -1,5 +1,5 @@
 """The report of ``fabric-fenicsx convergence``: CSV tables, log-log plots of error against
-run time and ``docs/convergence.md``, written from the runs and analyses of
+run time and ``docs/convergence/discretisation.md``, written from the runs and analyses of
 :mod:`fabric_fenicsx.studies.convergence` (imported here; it does not import this module). The
 command, :mod:`fabric_fenicsx.cli.convergence`, calls :func:`write_report`."""
 
@@ -156,9 +156,10 @@ def unitcell_section(uc: dict, out: Path, doc: Path) -> list[str]:
     return L
 
 
-def surrogate_section(doc: Path) -> list[str]:
-    csv_path = doc.parent / "surrogate" / "surrogate_report.csv"
-    png = doc.parent / "surrogate" / "surrogate_error_vs_time.png"
+def surrogate_section(doc: Path, folder: Path) -> list[str]:
+    """The surrogate study's table and plot from its report folder ``folder`` (docs/surrogate)."""
+    csv_path = folder / "surrogate_report.csv"
+    png = folder / "surrogate_error_vs_time.png"
     L = ["## 2. Surrogate resolution", "",
          "From the surrogate study (`fabric-fenicsx surrogate report --out docs/surrogate`, its own "
          "report `docs/surrogate/surrogate_report.md`); included here as it is, not recomputed by this command.", ""]
@@ -279,12 +280,16 @@ def ladder_section(title: str, knob: str, analyses: dict, out: Path, doc: Path) 
 def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: dict, study_time: dict,
                  quick: bool, scatter: dict | None = None, dt_mesh: dict | None = None) -> None:
     doc.parent.mkdir(parents=True, exist_ok=True)
-    L = ["# Convergence: error against run time", "",
+    L = ["# Convergence of the discretisation: error against run time", "",
          f"Produced by `{command}` on {datetime.date.today().isoformat()} "
          f"(code at commit {git_head() or 'unknown'}, '+' = with uncommitted edits), {os.cpu_count()} cores, "
          f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, one MPI rank. "
          "The machine was shared with other work while the study ran: wall times carry that load; "
-         "the plots use the CPU (process) time of each run, which does not.", ""]
+         "the plots use the CPU (process) time of each run, which does not.", "",
+         "The impact ladders here are of single runs, so they measure the discretisation only where a "
+         "run repeats (the elastic case: damage off). After damage a run is one draw of a distribution; "
+         "its statistics (V50, the mean residual velocity) converge, and `fabric-fenicsx ladder` measures "
+         "them: [convergence.md](" + _rel(out.parent / "convergence.md", doc) + ").", ""]
     if quick:
         L += ["**Quick smoke version (`--quick`): tiny ladders, not a convergence study.**", ""]
     L += ["Re-running the command reuses every impact run whose folder under "
@@ -295,7 +300,7 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
     sections = []
     if uc is not None:
         sections += unitcell_section(uc, out, doc)
-    sections += surrogate_section(doc)
+    sections += surrogate_section(doc, out.parent / "surrogate")
     titles = {"mesh": "## 3. Membrane mesh size at the impact point (`mesh.h_centre`, dt_safety 0.8)",
               "dt": "## 4. Time-step safety factor (`run.dt_safety`; h_centre per case: "
                     + ", ".join(f"{c} {h:g} mm" for c, h in (dt_mesh or DT_MESH_MM).items()) + ")"}
@@ -320,10 +325,8 @@ def write_report(doc: Path, out: Path, command: str, uc: dict | None, ladders: d
           "* Errors are relative: |q - q_ref| / |q_ref|. The observed order uses the three finest "
           "successful levels; it is trusted for Richardson extrapolation only inside "
           f"[{ORDER_RANGE[0]}, {ORDER_RANGE[1]}].",
-          "* The shipped scenes (`demos/scenes/*.toml`) follow the recommendation: `mesh.h_centre` from "
-          "the damaged case's ensembles (the stricter case), `run.dt_safety` from the dt ladders (the "
-          "cheapest level within 2 % in both cases). The study sets h_centre and dt_safety explicitly "
-          "on every run, so the scenes' defaults do not change its runs."]
+          "* The study sets h_centre and dt_safety explicitly on every run, so the scenes' defaults "
+          "(`demos/scenes/*.toml`) do not change its runs."]
     L += _data_notes(ladders)
     doc.write_text("\n".join(L))
 

@@ -1,5 +1,5 @@
 """The probability of perforation against impact velocity, fitted the way ballistic testing does
-(``fabric-fenicsx v50``, docs/convergence.md).
+(``fabric-fenicsx v50``, docs/ballistic_limit.md).
 
 Each counted run is a shot at velocity v that perforated (1) or was held (0). The probit model
 P(v) = Phi((v - V50) / sigma) is fitted by maximum likelihood with statsmodels (``Probit``);

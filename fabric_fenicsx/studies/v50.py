@@ -1,5 +1,5 @@
 """The ballistic limit and the residual velocity of a scene as statistics
-(``fabric-fenicsx v50``; docs/convergence.md).
+(``fabric-fenicsx v50``; docs/ballistic_limit.md).
 
 Shots are impact runs chosen by Neyer's sequential design (:mod:`~fabric_fenicsx.studies.neyer`)
 ``jobs`` at a time, each run a new member of the scene's ensemble: with a strength scatter

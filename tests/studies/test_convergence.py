@@ -167,3 +167,20 @@ def test_dt_ladder_mesh_per_case():
     runs = cv.plan(["dt"], {}, [0.9, 0.8, 0.6], {"damaged": 1.41, "elastic": 2.0})
     assert {(c, h) for _, c, h, _ in runs} == {("damaged", 1.41e-3), ("elastic", 2e-3)}
     assert len(runs) == 6
+
+
+def test_cases_select_the_ladders_that_run():
+    """``--cases`` (default elastic: after damage a single run is a draw) keeps only the chosen
+    cases' mesh and dt ladders; an unknown case is refused."""
+    import argparse
+    parser = argparse.ArgumentParser()
+    cli.add_arguments(parser)
+    assert parser.parse_args([]).cases == ["elastic"]
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--cases", "elastic,plastic"])
+    for given, expected in ((["--cases", "elastic"], {"elastic"}), (["--cases", "damaged,elastic"], {"damaged", "elastic"})):
+        args = parser.parse_args(given)
+        levels, safeties, dt_mesh = cli._ladders(args)
+        runs = cv.plan(["mesh", "dt"], levels, safeties, dt_mesh)
+        assert {c for _, c, _, _ in runs} == expected
+        assert len(runs) == len(expected) * (len(cv.MESH_LEVELS_MM["elastic"]) + len(cv.DT_SAFETIES))

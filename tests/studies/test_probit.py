@@ -51,7 +51,7 @@ def test_the_v50_interval_covers_the_true_v50_in_95_percent_of_1000_repetitions(
 def test_on_the_sequential_design_the_interval_covers_v50_at_least_90_percent():
     """The interval on Neyer's design, 40 shots, 300 times: the design chooses its velocities
     from the outcomes, which a large-sample interval does not know; measured 93 % (60 shots)
-    and 91.5 % (30 shots) in 300-400 repetitions (docs/convergence.md): the statement is 'at
+    and 91.5 % (30 shots) in 300-400 repetitions (docs/ballistic_limit.md): the statement is 'at
     least 90 %', not 95."""
     rng = np.random.default_rng(11)
     hits = []
