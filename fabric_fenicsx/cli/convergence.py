@@ -253,6 +253,8 @@ def _scatter(args: argparse.Namespace, runs_dir: Path, records) -> dict[float, l
     reused) if asked for, else those stored."""
     scatter: dict[float, list[cv.RunRecord]] = {}
     asked = "scatter" in args.only and "damaged" in getattr(args, "cases", cv.CASES)
+    if "scatter" in args.only and not asked and not args.quick:
+        _log("scatter: not run (it is the damaged case's; add --cases damaged,elastic for it)")
     for h in (x * 1e-3 for x in ([] if args.quick else cv.SCATTER_LEVELS_MM)):
         base = [r for k, r in records if k == "mesh" and r.case == "damaged" and math.isclose(r.h_centre, h)
                 and r.dt_safety == cv.DEFAULT_SAFETY]
