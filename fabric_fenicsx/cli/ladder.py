@@ -157,6 +157,8 @@ def _est(row: dict, stat: str) -> str:
 
     if row[stat] is None:
         return "no estimate"
+    if stat == "v50" and row.get("v50_kind") == "bracket":
+        return f"sharp: held at {row['v50_lo']:.2f}, through at {row['v50_hi']:.2f}"
     return f"{row[stat]:.2f} m/s {format_interval((row[f'{stat}_lo'], row[f'{stat}_hi']))}"
 
 

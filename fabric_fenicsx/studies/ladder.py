@@ -57,19 +57,28 @@ def rungs(families, sizes, variants=(), variant_size: float | None = None) -> li
 
 def measure(rung: Rung, v50_rows: list[dict], v50_stop: str, members: list[dict]) -> dict:
     """A rung's row: each statistic's estimate with its 95 % interval (lo, hi; None for an open
-    end or no estimate), the runs it took and their core-seconds."""
+    end or no estimate), the runs it took and their core-seconds. Where every run below a
+    velocity held and every run above it went through (a scene that repeats run for run), the
+    probit has no fit and V50 is a sharp limit: ``v50_kind`` "bracket", V50 the bracket's
+    midpoint and lo, hi its ends (the limit lies inside for sure; else "probit", or None)."""
     from fabric_fenicsx.studies.ensemble import statistics
     from fabric_fenicsx.studies.v50 import report
 
     rep = report(v50_rows, v50_stop, rung.key)
     p = rep["probit"]
+    bracket = rep["bracket"] if p is None else None
+    if p is not None:
+        v50, lo, hi, kind = p["v50"], p["v50_ci"][0], p["v50_ci"][1], "probit"
+    elif bracket is not None:
+        v50, (lo, hi), kind = 0.5 * (bracket[0] + bracket[1]), bracket, "bracket"
+    else:
+        v50, lo, hi, kind = None, None, None, None
     ok = [m for m in members if "error" not in m]
     s = statistics([m["residual_velocity"] for m in ok])
     half = s["ci95"]
     return {
         "rung": rung.key, "family": rung.family, "size": rung.size, "variant": rung.variant,
-        "v50": None if p is None else p["v50"],
-        "v50_lo": None if p is None else p["v50_ci"][0], "v50_hi": None if p is None else p["v50_ci"][1],
+        "v50": v50, "v50_lo": lo, "v50_hi": hi,
         "v50_sigma": None if p is None else p["sigma"], "v50_runs": rep["runs"],
         "v50_counted": rep["counts"]["perforated"] + rep["counts"]["held"], "v50_core_s": rep["core_seconds"],
         "v50_stop": v50_stop,
@@ -78,6 +87,7 @@ def measure(rung: Rung, v50_rows: list[dict], v50_stop: str, members: list[dict]
         "residual_velocity_hi": None if half is None else s["mean"] + half,
         "residual_velocity_sd": s["sd"], "residual_velocity_runs": len(members),
         "residual_velocity_core_s": float(sum(m.get("wall_time_s") or 0.0 for m in ok)),
+        "v50_kind": kind,
     }
 
 
@@ -155,8 +165,8 @@ def runs_for(width: float, rows: list[dict]) -> list[dict]:
     for r in rows:
         for stat, runs in (("v50", r["v50_counted"]), ("residual_velocity", r["residual_velocity_runs"])):
             half = _half(r, stat)
-            if half is None or not runs:
-                continue
+            if half is None or not runs or (stat == "v50" and r.get("v50_kind") == "bracket"):
+                continue            # a sharp limit's bracket halves with each run: no 1 / sqrt(runs)
             n = max(runs, math.ceil(runs * (2.0 * half / width) ** 2))
             per_run = r[f"{stat}_core_s"] / max(r[f"{stat}_runs"], 1)
             out.append({"rung": r["rung"], "statistic": stat, "width": width, "runs": n,

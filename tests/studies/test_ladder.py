@@ -104,3 +104,28 @@ def test_the_command_on_stand_in_runs(tmp_path, monkeypatch, capsys):
     assert (out / "aligned-4mm" / "v50" / "v50.csv").exists() and (out / "aligned-4mm" / "members").is_dir()
     assert main(["ladder", SCENE, "--sizes", "0.004", "--variant", "run.damping=0.05", "--out", str(tmp_path / "x")]) == 2
     assert "must be one of the sizes" in capsys.readouterr().err
+
+
+def test_a_sharp_limit_is_reported_as_its_bracket():
+    """Outcomes separated in velocity (a scene that repeats run for run, like XY0): no probit, V50
+    is the bracket's midpoint with the bracket as its interval, and its cost is not scaled as
+    1 / sqrt(runs); a mixed zone gives the probit as before."""
+    def rows(velocities, limit):
+        return [{"velocity": v, "outcome": "perforated" if v > limit else "held",
+                 "residual_velocity": v - limit if v > limit else -0.1, "wall_time_s": 10.0} for v in velocities]
+
+    members = [{"residual_velocity": 30.0, "wall_time_s": 10.0}] * 4
+    sharp = ladder.measure(ladder.Rung("graded", 0.002), rows([36.0, 38.0, 39.0, 39.5, 40.0, 42.0], 39.2),
+                           "design ended", members)
+    assert sharp["v50_kind"] == "bracket" and (sharp["v50_lo"], sharp["v50_hi"]) == (39.0, 39.5)
+    assert sharp["v50"] == pytest.approx(39.25) and sharp["v50_sigma"] is None
+    assert not [c for c in ladder.runs_for(2.0, [sharp]) if c["statistic"] == "v50"]
+    other = dict(sharp, rung="graded-4mm", size=0.004, v50=39.6, v50_lo=39.3, v50_hi=39.9)
+    err = {e["size"]: e for e in ladder.analyse([other, sharp])["errors"] if e["statistic"] == "v50"}
+    assert err[0.004]["agree"] is True                      # the brackets overlap
+    mixed = [{"velocity": v, "outcome": o, "residual_velocity": 1.0 if o == "perforated" else -0.1,
+              "wall_time_s": 10.0}
+             for v, o in [(34, "held"), (36, "held"), (37, "perforated"), (38, "held"), (39, "perforated"),
+                          (40, "held"), (41, "perforated"), (43, "perforated"), (35, "held"), (42, "perforated")]]
+    fitted = ladder.measure(ladder.Rung("graded", 0.002), mixed, "n runs", members)
+    assert fitted["v50_kind"] == "probit" and fitted["v50_lo"] < fitted["v50"] < fitted["v50_hi"]
