@@ -66,11 +66,11 @@ def measure(rung: Rung, v50_rows: list[dict], v50_stop: str, members: list[dict]
 
     rep = report(v50_rows, v50_stop, rung.key)
     p = rep["probit"]
-    bracket = rep["bracket"] if p is None else None
     if p is not None:
         v50, lo, hi, kind = p["v50"], p["v50_ci"][0], p["v50_ci"][1], "probit"
-    elif bracket is not None:
-        v50, (lo, hi), kind = 0.5 * (bracket[0] + bracket[1]), bracket, "bracket"
+    elif rep["bracket"] is not None:       # report() gives a bracket only where the probit has no fit
+        (lo, hi), kind = rep["bracket"], "bracket"
+        v50 = 0.5 * (lo + hi)
     else:
         v50, lo, hi, kind = None, None, None, None
     ok = [m for m in members if "error" not in m]
