@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -70,6 +70,12 @@ class _Clock:
     output: float = 0.0
     bookkeeping: float = 0.0   # includes dt_check
     dt_check: float = 0.0
+    tiles: dict[str, float] = field(default_factory=dict)
+    """Seconds of table-tile solves inside each phase (and "step": the fabric's step), to be
+    taken out of its time: a one-off cost, not per-step work."""
+
+    def add_tiles(self, phase: str, seconds: float) -> None:
+        self.tiles[phase] = self.tiles.get(phase, 0.0) + seconds
 
 
 @dataclass
@@ -176,7 +182,7 @@ class ImpactSimulation:
                          if out.png or out.animation else None)
         self.ledger = EnergyLedger()
         self.clock = _Clock()
-        self._tile_seconds0 = self.surrogate.build_seconds if self.surrogate is not None else 0.0
+        self._tile_seconds0 = self._tile_seconds()
         self.build_seconds = time.perf_counter() - t_build
         terms = ", ".join(t.name for t in m.terms)
         self._say(f"impact: {sc.source}: {self.n_cells_global} cells on {comm.size} rank(s), "
@@ -272,11 +278,16 @@ class ImpactSimulation:
         return self._finish(end_reason, loop.step, loop.dt, wall, *map(np.array, forces), energy)
 
     def _timed(self, phase: str, fn, *args):
-        """``fn(*args)``, its wall time added to the clock's ``phase``."""
-        t0 = time.perf_counter()
+        """``fn(*args)``, its wall time and the table tiles solved in it added to the clock's ``phase``."""
+        t0, tiles = time.perf_counter(), self._tile_seconds()
         result = fn(*args)
         setattr(self.clock, phase, getattr(self.clock, phase) + time.perf_counter() - t0)
+        self.clock.add_tiles(phase, self._tile_seconds() - tiles)
         return result
+
+    def _tile_seconds(self) -> float:
+        """Seconds the surrogate has spent solving table tiles so far (0 without one)."""
+        return self.surrogate.build_seconds if self.surrogate is not None else 0.0
 
     def _contact_and_centre(self, dt: float):
         """:meth:`_contact` and the central node's displacement along z at t_n (this rank's)."""
@@ -326,11 +337,14 @@ class ImpactSimulation:
 
     def _fabric_step(self, loop: _Loop, t_n: float, f_ext):
         """The membrane from t_n to t_n + dt; numerical trouble becomes an :class:`ImpactError`."""
+        tiles = self._tile_seconds()
         try:
             return self.cd.step(loop.dt, f_ext)
         except trouble.STEP_ERRORS as err:
             raise ImpactError(self._trouble(loop.step, t_n, f"{type(err).__name__}: {err}",
                                             trouble.component(err))) from err
+        finally:
+            self.clock.add_tiles("step", self._tile_seconds() - tiles)
 
     def _reduce(self, loop: _Loop, t_n: float, f_p, info, uz_c: float, removed: tuple, check: bool):
         """This step's values summed and maximised over all ranks (two collective calls)."""
@@ -347,13 +361,14 @@ class ImpactSimulation:
             **mat.energies(), "deleted": delete.size, "eroded": erode.size,
             "damaged": float(damaged), "central_uz": uz_c, "n_front": front,
             "n_attached": info["n_attached"]})
-        tw = time.perf_counter()
+        tw, tiles = time.perf_counter(), self._tile_seconds()
         try:
             modulus = mat.max_wave_modulus(self.scene.run.dt_check_interval) if check else 0.0
         except trouble.STEP_ERRORS as err:
             raise ImpactError(self._trouble(loop.step, t_n, f"time-step check: {type(err).__name__}: "
                                             f"{err}", trouble.component(err))) from err
         self.clock.dt_check += time.perf_counter() - tw
+        self.clock.add_tiles("dt_check", self._tile_seconds() - tiles)
         maxima = reduce_named(self.comm, {"z_max": z_max, "modulus": modulus,
                                           "attached_displacement": moved}, op=MPI.MAX)
         return sums, maxima

@@ -1,0 +1,105 @@
+"""Benchmark: how much of an impact step is spent inside compiled kernels (prints numbers; not a test).
+
+Runs the scene of benchmarks/bench_impact.py (demos/scenes/y90.toml at 57.3 m/s on its own 1.41 mm
+graded mesh) with every compiled kernel of the step timed: the numba kernels of the surrogate,
+the yarn stresses, strains, hourglass forces, contact, cell removal and the central difference,
+DOLFINx's ``assemble_vector`` and the ``numpy.take`` that packs its coefficients. It prints each
+kernel's time per step and their sum against the whole step. The sum is the step's floor for
+any change that keeps these kernels (the same answers to round-off, DOLFINx's assembly of the
+weak form): Python around them can be removed, the kernels' own work cannot.
+
+    .venv/bin/python benchmarks/bench_kernels.py [--scene demos/scenes/y90.toml] [--set KEY=VALUE ...]
+
+The kernels are timed by replacing them, by name, in the modules that call them; each timed call
+costs about a microsecond more (about 0.02 ms per step here), so the step is a little slower than
+in bench_impact.py.
+"""
+
+import argparse
+import collections
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import fabric_fenicsx.fem.explicit as explicit
+import fabric_fenicsx.fem.membrane as membrane
+import fabric_fenicsx.fem.point_strains as point_strains
+import fabric_fenicsx.fem.projectile as projectile
+import fabric_fenicsx.fem.terms as terms
+import fabric_fenicsx.impact.removal as removal
+import fabric_fenicsx.impact.simulation as simulation
+import fabric_fenicsx.surrogate.kernels.damage as damage_kernel
+import fabric_fenicsx.surrogate.kernels.interp as interp_kernel
+import fabric_fenicsx.surrogate.kernels.yarn_stress as yarn_stress_kernel
+from fabric_fenicsx.impact.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+
+KERNELS = [
+    (interp_kernel, "zero_force_strain", "tension field: force-free strain searches"),
+    (interp_kernel, "lookup", "surrogate look-up"),
+    (interp_kernel, "lookup_derivatives", "surrogate look-up with slopes (dt checks)"),
+    (interp_kernel, "prepare_inputs", "surrogate input checks"),
+    (damage_kernel, "update", "damage update (look-up, Eq. 2-25 iteration)"),
+    (yarn_stress_kernel, "stresses", "yarn stresses, slack rule, viscous stress"),
+    (yarn_stress_kernel, "new_damage", "damage history"),
+    (yarn_stress_kernel, "slack", "slack masks (dt checks)"),
+    (point_strains, "_yarn_strains", "yarn strains at the points"),
+    (membrane.fem_petsc, "assemble_vector", "DOLFINx assemble_vector (internal force)"),
+    (np, "take", "numpy.take (packed coefficients)"),
+    (terms, "_add_hourglass_forces", "hourglass forces"),
+    (explicit, "_forces_and_works", "central difference: forces and works"),
+    (explicit, "_leapfrog", "central difference: update"),
+    (simulation, "near_nodes", "contact: nodes near the projectile"),
+    (projectile, "penalty_forces", "contact: penalty and friction"),
+    (removal, "_node_extremes", "end tests: node pass"),
+]
+
+
+def timed(seconds, calls, owner, name):
+    """Replace ``owner.name`` by a wrapper that adds its wall time to ``seconds[name]``."""
+    kernel = getattr(owner, name)
+
+    def wrapper(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return kernel(*args, **kwargs)
+        finally:
+            seconds[name] += time.perf_counter() - t0
+            calls[name] += 1
+
+    setattr(owner, name, wrapper)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default=str(ROOT / "demos" / "scenes" / "y90.toml"))
+    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    args = parser.parse_args()
+    scene = load_scene(args.scene, ["projectile.velocity=57.3", "output.png=false",
+                                    "output.progress_interval=0", *args.overrides])
+    seconds, calls = collections.defaultdict(float), collections.Counter()
+    for owner, name, _ in KERNELS:
+        timed(seconds, calls, owner, name)
+    with tempfile.TemporaryDirectory() as out:
+        sim = simulation.ImpactSimulation(scene, out, verbose=False)
+        try:
+            s = sim.run()
+        finally:
+            sim.output.close()
+    n = s["n_steps"]
+    loop = s["wall_time_s"] - s["time_total_s"]["surrogate_tiles"]
+    print(f"kernel benchmark: {scene.source} at {s['v0']:g} m/s, {s['n_cells']} cells, {n} steps, "
+          f"end: {s['end_reason']}; the step: {loop / n * 1e3:.3f} ms (run without tile solves / steps)")
+    print("  time per step inside compiled kernels (ms, calls per step):")
+    for owner, name, label in sorted(KERNELS, key=lambda k: -seconds[k[1]]):
+        print(f"    {seconds[name] / n * 1e3:7.4f}  ({calls[name] / n:4.2f})  {label}")
+    inside = sum(seconds.values())
+    print(f"    {inside / n * 1e3:7.4f}  sum: {inside / loop:.0%} of the step; the rest "
+          f"({(loop - inside) / n * 1e3:.3f} ms) is Python and numpy around them")
+
+
+if __name__ == "__main__":
+    main()
