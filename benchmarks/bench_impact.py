@@ -32,19 +32,21 @@ from fabric_fenicsx.impact.simulation import ImpactSimulation
 from fabric_fenicsx.impact.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "demos" / "scenes" / "y90.toml"
+SETTINGS = ["projectile.velocity=57.3", "output.png=false", "output.progress_interval=0"]
+"""The benchmarked scene and the keys every benchmark run sets."""
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default=str(ROOT / "demos" / "scenes" / "y90.toml"))
+    parser.add_argument("--scene", default=str(SCENE))
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     parser.add_argument("--reference", action="append", default=[],
                         help="also run with these keys changed and print the wall-time ratio")
     args = parser.parse_args()
-    base = ["projectile.velocity=57.3", "output.png=false", "output.progress_interval=0"]
-    s = bench(load_scene(args.scene, [*base, *args.overrides]))
+    s = bench(load_scene(args.scene, [*SETTINGS, *args.overrides]))
     if args.reference:
-        r = bench(load_scene(args.scene, [*base, *args.overrides, *args.reference]))
+        r = bench(load_scene(args.scene, [*SETTINGS, *args.overrides, *args.reference]))
         if MPI.COMM_WORLD.rank == 0:
             run, ref = (x["wall_time_s"] - x["time_total_s"]["surrogate_tiles"] for x in (s, r))
             print(f"ratio of run times (without tile solves): {run:.1f} s / {ref:.1f} s = "

@@ -19,7 +19,6 @@ import argparse
 import collections
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -33,9 +32,8 @@ import fabric_fenicsx.impact.simulation as simulation
 import fabric_fenicsx.surrogate.kernels.damage as damage_kernel
 import fabric_fenicsx.surrogate.kernels.interp as interp_kernel
 import fabric_fenicsx.surrogate.kernels.yarn_stress as yarn_stress_kernel
+from bench_impact import SCENE, SETTINGS
 from fabric_fenicsx.impact.scene import load_scene
-
-ROOT = Path(__file__).resolve().parents[1]
 
 KERNELS = [
     (interp_kernel, "zero_force_strain", "tension field: force-free strain searches"),
@@ -75,11 +73,10 @@ def timed(seconds, calls, owner, name):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default=str(ROOT / "demos" / "scenes" / "y90.toml"))
+    parser.add_argument("--scene", default=str(SCENE))
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     args = parser.parse_args()
-    scene = load_scene(args.scene, ["projectile.velocity=57.3", "output.png=false",
-                                    "output.progress_interval=0", *args.overrides])
+    scene = load_scene(args.scene, [*SETTINGS, *args.overrides])
     seconds, calls = collections.defaultdict(float), collections.Counter()
     for owner, name, _ in KERNELS:
         timed(seconds, calls, owner, name)
