@@ -31,8 +31,8 @@ def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.studies import strip
 
     try:
-        sizes = [float(s) for s in args.sizes.split(",")]
-        families = [f.strip() for f in args.families.split(",")]
+        sizes = [float(s) for s in (args.sizes or "0.002,0.001").split(",")]
+        families = [f.strip() for f in (args.families or "aligned,free").split(",")]
     except ValueError:
         print(f"{PROG}: --sizes must be cell sizes in m separated by commas, got {args.sizes!r}",
               file=sys.stderr)

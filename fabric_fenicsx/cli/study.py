@@ -2,7 +2,8 @@
 the thesis's chapter 4 as studies (:mod:`fabric_fenicsx.studies.chapter4`).
 
 NAME: table4, table5, table6, friction, fillet, v50 or chapter4 (all of them, and the validation
-report), or strip (the strength scatter's strip test, :mod:`fabric_fenicsx.cli.strip`). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time
+report), strip (the strength scatter's strip test, :mod:`fabric_fenicsx.cli.strip`) or tear (the tear
+test of a slit panel on several mesh families, :mod:`fabric_fenicsx.cli.tear`). The runs are independent ``fabric-fenicsx impact`` processes, ``--jobs`` at a time
 (the four scenes' ballistic limits are estimated side by side, sharing them), each into
 OUT/runs/<run> (the ballistic limits' runs into OUT/v50/SCENE/run_<i>, with each scene's
 v50.csv, v50.json and v50.png: :mod:`fabric_fenicsx.studies.v50`, ``--ci`` and ``--max-runs``
@@ -52,7 +53,7 @@ def _say(line: str, stream=None) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from fabric_fenicsx.studies.chapter4 import STUDIES
 
-    parser.add_argument("name", metavar="NAME", help=f"the study: {', '.join(STUDIES)}, strip")
+    parser.add_argument("name", metavar="NAME", help=f"the study: {', '.join(STUDIES)}, strip, tear")
     parser.add_argument("--out", default=None, help="output folder (default out/study-NAME)")
     parser.add_argument("--jobs", type=int, default=None,
                         help="runs at the same time (default: the cores; with --scheduler, the cluster's worker threads)")
@@ -70,8 +71,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no line per run and no progress lines")
     parser.add_argument("--seeds", type=int, default=100, help="strip: seeds of the scatter per mesh (default 100)")
     parser.add_argument("--scatter", default="weibull", help="strip: the scatter model (weibull or fibrils)")
-    parser.add_argument("--sizes", default="0.002,0.001", help="strip: cell sizes in m (default 0.002,0.001)")
-    parser.add_argument("--families", default="aligned,free", help="strip: mesh families (default aligned,free)")
+    parser.add_argument("--sizes", default=None, help="strip, tear: cell sizes in m (default 0.002,0.001)")
+    parser.add_argument("--families", default=None,
+                        help="strip: mesh families (default aligned,free); tear: aligned, graded, structured<deg>, "
+                             "file (default aligned,structured30,structured45,graded)")
+    parser.add_argument("--notch", default="edge", help="tear: a slit from the bottom edge (edge) or centred (centre)")
+    parser.add_argument("--mesh-file", default=None, help="tear: the gmsh .msh file of the family 'file'")
     parser.add_argument("--cell-rule", default="weakest",
                         help="strip: how a cell reads the segments it covers, weakest, patch or yarn (default weakest)")
     parser.add_argument("--crack-band", action="store_true",
@@ -116,6 +121,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: the runs are processes of their own (--jobs); run it without mpirun", file=sys.stderr)
         return 2
     args.out = args.out or str(Path("out") / f"study-{args.name}")
+    if args.name == "tear":
+        from fabric_fenicsx.cli import tear
+
+        return tear.run(args)
     if args.name == "strip":
         from fabric_fenicsx.cli import strip
 

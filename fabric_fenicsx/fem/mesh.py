@@ -40,10 +40,12 @@ from mpi4py import MPI
 import dolfinx.fem
 import dolfinx.mesh
 
+from fabric_fenicsx.fem.structured_patch import build_patch_geometry, largest_patch_radius, patch_half_side
+
 SIDE_DEFAULT = 0.27305  # m, 10.75 in (thesis Sec. 4.1)
 
 FABRIC = 1  # cell (surface) tag
-LEFT, RIGHT, BOTTOM, TOP = 1, 2, 3, 4  # facet tags: x = -side/2, x = +side/2, y = -side/2, y = +side/2
+LEFT, RIGHT, BOTTOM, TOP = 1, 2, 3, 4  # facet tags (the same in .structured_patch): x = -side/2, x = +side/2, y = -side/2, y = +side/2
 EDGE_NAMES = {LEFT: "left", RIGHT: "right", BOTTOM: "bottom", TOP: "top"}
 
 # Bump when build_msh changes what it writes: cached files of other versions are rebuilt.
@@ -78,8 +80,13 @@ class MeshSpec:
         ``(-side/2 + 0.02, 0)``. A mesh node is placed exactly there.
     grading: growth of the element size per unit distance in the transition
         (dimensionless, 0 < grading <= 1).
+    rotation: None (default) for unstructured quadrilaterals at the impact point; a number
+        (degrees) for a *structured patch*: a square of side ``2 * refine_radius`` centred at
+        ``centre``, its rows of squares of side ``h_centre`` turned ``rotation`` degrees from x,
+        in unstructured quadrilaterals graded to ``h_edge``
+        (:mod:`~fabric_fenicsx.fem.structured_patch`).
 
-    ``h_centre == h_edge`` gives a structured (transfinite) grid of squares.
+    ``h_centre == h_edge`` without a rotation gives a structured (transfinite) grid of squares.
     """
 
     side: float = SIDE_DEFAULT
@@ -88,6 +95,7 @@ class MeshSpec:
     refine_radius: float = 0.02
     centre: tuple[float, float] = (0.0, 0.0)
     grading: float = 0.1
+    rotation: float | None = None
 
     def __post_init__(self) -> None:
         for field in ("side", "h_centre", "h_edge", "refine_radius", "grading"):
@@ -99,6 +107,8 @@ class MeshSpec:
         if len(centre) != 2 or not all(math.isfinite(c) for c in centre):
             raise ValueError(f"MeshSpec.centre = {self.centre!r}: must be two finite numbers (x, y) in m")
         object.__setattr__(self, "centre", centre)
+        if self.rotation is not None:
+            object.__setattr__(self, "rotation", _as_float("rotation", self.rotation))
 
         for field in ("side", "h_centre", "h_edge", "grading"):
             if not getattr(self, field) > 0.0:
@@ -116,10 +126,17 @@ class MeshSpec:
             raise ValueError(
                 f"MeshSpec.centre = {centre!r}: must lie inside the square |x|, |y| < side/2 = {self.side / 2!r}"
                 f" and at least h_centre = {self.h_centre!r} from every edge")
+        if self.rotation is not None:
+            room = largest_patch_radius(self.side, centre, self.rotation, self.h_centre)
+            if patch_half_side(self.refine_radius, self.h_centre) > room:
+                raise ValueError(
+                    f"MeshSpec.refine_radius = {self.refine_radius!r}: the structured patch (half-side "
+                    f"{patch_half_side(self.refine_radius, self.h_centre)!r} m, {self.rotation:g} degrees) must keep h_centre from every edge "
+                    f"of the square; at most {room!r} m here")
 
     @property
     def uniform(self) -> bool:
-        return self.h_centre == self.h_edge
+        return self.h_centre == self.h_edge and self.rotation is None
 
     @property
     def name(self) -> str:
@@ -127,12 +144,15 @@ class MeshSpec:
         ``fabric_s273.05mm_hc1.00mm_he8.00mm_r20.00mm_g0.10_c0.00_0.00mm.msh``."""
         cx, cy = self.centre
         grading = f"{self.grading + 0.0:.4f}".rstrip("0").ljust(4, "0")
+        patch = "" if self.rotation is None else f"_rot{self.rotation + 0.0:.4f}".rstrip("0").rstrip(".")
         return (f"fabric_s{_mm(self.side)}mm_hc{_mm(self.h_centre)}mm_he{_mm(self.h_edge)}mm"
-                f"_r{_mm(self.refine_radius)}mm_g{grading}_c{_mm(cx)}_{_mm(cy)}mm.msh")
+                f"_r{_mm(self.refine_radius)}mm_g{grading}_c{_mm(cx)}_{_mm(cy)}mm{patch}.msh")
 
     def as_dict(self) -> dict:
         d = dataclasses.asdict(self)
         d["centre"] = list(self.centre)
+        if self.rotation is None:   # the unstructured meshes' sidecars stay as they were
+            del d["rotation"]
         return d
 
 
@@ -169,7 +189,7 @@ def build_msh(spec: MeshSpec, path: str | os.PathLike, verbose: bool = False) ->
     try:
         gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
         gmsh.model.add("fabric")
-        if spec.uniform:
+        if spec.uniform and spec.rotation is None:
             (surfaces, edges), algorithm = _geometry_uniform(gmsh, spec), "transfinite"
             gmsh.model.mesh.generate(2)
             quads, x = _quads(gmsh)
@@ -177,7 +197,8 @@ def build_msh(spec: MeshSpec, path: str | os.PathLike, verbose: bool = False) ->
                 raise RuntimeError(f"build_msh: transfinite meshing of {spec.name} left non-quadrilateral cells")
             sj = _min_scaled_jacobian(x[quads])
         else:
-            surfaces, edges = _geometry_graded(gmsh, spec)
+            geometry = _geometry_graded if spec.rotation is None else build_patch_geometry
+            surfaces, edges = geometry(gmsh, spec)
             sj, algorithm, tried = -1.0, None, []
             for alg, rec in _ALGORITHMS:
                 gmsh.model.mesh.clear()

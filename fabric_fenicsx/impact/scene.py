@@ -197,10 +197,17 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      "key = value} with keyword arguments (fabric_fenicsx.impact.term_specs)"),
     },
     "mesh": {
-        "kind": Key("graded", choice("graded", "uniform", "aligned"),
+        "kind": Key("graded", choice("graded", "uniform", "aligned", "structured", "file"),
                     "graded = unstructured gmsh quadrilaterals fine at the impact point; uniform = "
                     "n x n squares; aligned = a structured grid along x and y graded like the gmsh mesh "
-                    "(h_centre, h_edge, refine_radius, grading)"),
+                    "(h_centre, h_edge, refine_radius, grading); structured = a patch of squares of side "
+                    "h_centre, half-side refine_radius, turned mesh.rotation degrees from x at the impact "
+                    "point, in gmsh quadrilaterals graded to h_edge; file = the quadrilaterals of mesh.file"),
+        "rotation": Key(0.0, number(-360.0, 360.0, unit="deg"),
+                        "angle from x of the rows of the structured patch (mesh.kind = 'structured')"),
+        "file": Key("", optional_text,
+                    "a gmsh .msh file of 4-node quadrilaterals covering the square [-side/2, side/2]^2 "
+                    "(mesh.kind = 'file'; relative to the scene file); its edges are found by position"),
         "side": Key(0.27305, number(0.0, lo_open=True, unit="m"),
                     "side of the square fabric (10.75 in, Sec. 4.1)"),
         "h_centre": Key(2.0e-3, number(0.0, lo_open=True, unit="m"),
@@ -403,11 +410,22 @@ def build_scene(raw: dict[str, Any], overrides: list[str] | tuple[str, ...] = ()
 
 def _cross_check(d: dict[str, dict[str, Any]]) -> None:
     m, p = d["mesh"], d["projectile"]
-    if m["kind"] in ("graded", "aligned"):
+    if m["kind"] == "file" and not m["file"]:
+        raise SceneError("mesh.kind = 'file' needs mesh.file: a gmsh .msh file of quadrilaterals")
+    if m["kind"] in ("graded", "aligned", "structured"):
         if m["h_centre"] > m["h_edge"]:
             raise SceneError(f"mesh.h_centre = {m['h_centre']!r}: must not exceed mesh.h_edge = {m['h_edge']!r}")
         if m["h_edge"] > m["side"] / 2:
             raise SceneError(f"mesh.h_edge = {m['h_edge']!r}: must be <= mesh.side / 2 = {m['side'] / 2!r}")
+    if m["kind"] == "structured":
+        from fabric_fenicsx.fem.structured_patch import largest_patch_radius, patch_half_side
+
+        half = patch_half_side(m["refine_radius"], m["h_centre"])
+        room = largest_patch_radius(m["side"], (p["x"], p["y"]), m["rotation"], m["h_centre"])
+        if half > room:
+            raise SceneError(f"mesh.refine_radius = {m['refine_radius']!r}: the structured patch (half-side "
+                             f"{half:.6g} m, turned {m['rotation']:g} degrees) must keep mesh.h_centre from every "
+                             f"edge of the fabric; at most {room:.6g} m here")
     limit = min(p["diameter"], p["length"]) / 2
     if p["fillet"] > limit:
         raise SceneError(f"projectile.fillet = {p['fillet']!r}: must be <= min(diameter, length) / 2 = {limit!r}")
@@ -433,7 +451,16 @@ GRADED_KEYS = ("h_centre", "h_edge", "refine_radius", "grading")
 
 def ignored_keys_warning(scene: Scene) -> str:
     """The warning for mesh keys the scene gives but its mesh does not use ("" for none)."""
-    if scene.mesh.kind == "uniform":
+    kind = scene.mesh.kind
+    for key, owner in (("rotation", "structured"), ("file", "file")):
+        if f"mesh.{key}" in scene.given and kind != owner:
+            return f"mesh.{key} is ignored: it applies to mesh.kind = {owner!r}, not {kind!r}"
+    if kind == "file":
+        unused = [f"mesh.{k}" for k in (*GRADED_KEYS, "n") if f"mesh.{k}" in scene.given]
+        if unused:
+            return (f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} ignored: mesh.kind = "
+                    "'file' takes its cells from mesh.file")
+    elif kind == "uniform":
         unused = [f"mesh.{k}" for k in GRADED_KEYS if f"mesh.{k}" in scene.given]
         if unused:
             return (f"{', '.join(unused)} {'is' if len(unused) == 1 else 'are'} ignored: mesh.kind = "
@@ -470,6 +497,7 @@ def load_scene(path: str | Path | None, overrides: list[str] | tuple[str, ...] =
         path = Path(path)
         scene, base = build_scene(_read_toml(path), overrides, str(path)), path.parent
     _resolve_fabric_file(scene, base)
+    _resolve_mesh_file(scene, base)
     if scene["membrane"]["terms"]:
         scene["membrane"]["terms"] = resolve_term_specs(scene["membrane"]["terms"], base)
         scene.membrane.terms = scene["membrane"]["terms"]
@@ -511,6 +539,31 @@ def _resolve_fabric_file(scene: Scene, base: Path) -> None:
     scene["fabric"]["file"] = str(f)
     scene.fabric.file = str(f)
     load_fabric(scene)
+
+
+def _resolve_mesh_file(scene: Scene, base: Path) -> None:
+    """Make ``mesh.file`` absolute (relative to ``base``) and check that it is a gmsh file of
+    quadrilaterals covering the scene's square (:func:`~fabric_fenicsx.fem.mesh_file.square_msh_problem`)."""
+    given = scene["mesh"]["file"]
+    if not given or scene.mesh.kind != "file":
+        return
+    f = Path(given)
+    if not f.is_absolute():
+        f = base / f
+    if not f.is_file():
+        what = ("a folder, not a file" if f.is_dir() else
+                "not a regular file (a device, a pipe or a socket)" if f.exists() else "no such file")
+        raise SceneError(f"mesh.file = {given!r}: {what} ({f}); give a gmsh .msh file of quadrilaterals")
+    from fabric_fenicsx.fem.mesh_file import square_msh_problem
+
+    try:
+        problem = square_msh_problem(f, scene.mesh.side)
+    except Exception as err:   # gmsh's own words for a file it cannot read
+        problem = f"gmsh cannot read it: {type(err).__name__}: {err}"
+    if problem:
+        raise SceneError(f"mesh.file = {given!r}: {problem}")
+    scene["mesh"]["file"] = str(f)
+    scene.mesh.file = str(f)
 
 
 def load_fabric(scene: Scene):

@@ -4,12 +4,12 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from fabric_fenicsx.fem.mesh import (BOTTOM, LEFT, RIGHT, TOP, MeshSpec, aligned_square, load_mesh,
-                                     uniform_square)
+from fabric_fenicsx.fem.mesh import BOTTOM, LEFT, RIGHT, TOP, MeshSpec, aligned_square, load_mesh, uniform_square
+from fabric_fenicsx.fem.mesh_file import read_square_msh
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
 from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear, MembraneTerm
 from fabric_fenicsx.impact.output import cell_corners
-from fabric_fenicsx.impact.scene import Scene, load_fabric
+from fabric_fenicsx.impact.scene import Scene, SceneError, load_fabric
 from fabric_fenicsx.impact.term_specs import build_scene_terms
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
 from fabric_fenicsx.material.scatter import StrengthScatter, cell_laws
@@ -31,14 +31,25 @@ def build_fabric(scene: Scene) -> Fabric:
 
 def build_mesh(scene: Scene, comm):
     """(mesh, facet tags) of the scene: n x n squares, the graded gmsh mesh fine at the
-    impact point, or the graded grid along x and y with the same sizes (``aligned``)."""
+    impact point, the graded grid along x and y with the same sizes (``aligned``), a structured
+    patch turned ``mesh.rotation`` degrees in the graded gmsh mesh (``structured``), or a
+    user's file (``file``; a bad one raises :class:`~fabric_fenicsx.impact.scene.SceneError`)."""
     ms = scene.mesh
     if ms.kind == "uniform":
         msh, _, facet_tags = uniform_square(ms.n, ms.side, comm)
         return msh, facet_tags
-    spec = MeshSpec(side=ms.side, h_centre=ms.h_centre, h_edge=ms.h_edge,
-                    refine_radius=ms.refine_radius, centre=(scene.projectile.x, scene.projectile.y),
-                    grading=ms.grading)
+    if ms.kind == "file":
+        try:
+            msh, _, facet_tags = read_square_msh(ms.file, ms.side, comm)
+        except ValueError as err:
+            raise SceneError(f"mesh.file: {err}") from None
+        return msh, facet_tags
+    try:
+        spec = MeshSpec(side=ms.side, h_centre=ms.h_centre, h_edge=ms.h_edge,
+                        refine_radius=ms.refine_radius, centre=(scene.projectile.x, scene.projectile.y),
+                        grading=ms.grading, rotation=ms.rotation if ms.kind == "structured" else None)
+    except ValueError as err:
+        raise SceneError(str(err).replace("MeshSpec.", "mesh.")) from None
     if ms.kind == "aligned":
         msh, _, facet_tags = aligned_square(spec, comm)
     else:

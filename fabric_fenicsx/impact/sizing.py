@@ -109,6 +109,32 @@ def _graded_cells(side: float, c: tuple[float, float], h_centre: float, h_edge: 
     return float(np.trapz(integrand, r))
 
 
+def _file_cells(path: str) -> tuple[float, float]:
+    """(cells, L_min) of a user's mesh file: its 2D cells and the smallest area / longest
+    diagonal of its quadrilaterals (the stable step's length, ``cell_sizes``), read with gmsh."""
+    import gmsh
+
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        gmsh.merge(str(path))
+        tags, coords, _ = gmsh.model.mesh.getNodes()
+        _, _, nodes = gmsh.model.mesh.getElements(2)
+    except Exception:   # an unreadable file is refused with its reason when the mesh is read
+        return 0.0, math.inf
+    finally:
+        gmsh.finalize()
+    if len(nodes) != 1 or len(nodes[0]) % 4:
+        return 0.0, math.inf
+    x = np.zeros((int(np.max(tags)) + 1, 2))
+    x[np.asarray(tags, dtype=np.int64)] = coords.reshape(-1, 3)[:, :2]
+    p = x[np.asarray(nodes[0], dtype=np.int64).reshape(-1, 4)]
+    area = 0.5 * np.abs(np.sum(p[..., 0] * np.roll(p[..., 1], -1, axis=1) - np.roll(p[..., 0], -1, axis=1) * p[..., 1],
+                               axis=1))
+    diagonal = np.maximum(np.linalg.norm(p[:, 2] - p[:, 0], axis=1), np.linalg.norm(p[:, 3] - p[:, 1], axis=1))
+    return float(p.shape[0]), float(np.min(area / diagonal))
+
+
 def _straight_modulus(scene: Scene):
     """(straight intact yarn modulus (N/m), fabric) of the scene, without DOLFINx."""
     from fabric_fenicsx.impact.scene import load_fabric
@@ -133,7 +159,9 @@ def estimate(scene: Scene) -> Estimate:
         nx = _nodes_1d(-m.side / 2, m.side / 2, p.x, *args)
         ny = _nodes_1d(-m.side / 2, m.side / 2, p.y, *args)
         cells, L_min = nx * ny, m.h_centre / math.sqrt(2)
-    else:
+    elif m.kind == "file":
+        cells, L_min = _file_cells(m.file)
+    else:   # graded, and structured: its patch's squares are within the estimate's factor of two
         cells = GRADED_CELLS * _graded_cells(m.side, (p.x, p.y), m.h_centre, m.h_edge, m.refine_radius,
                                              m.grading)
         L_min = GRADED_L_MIN * m.h_centre
@@ -184,6 +212,8 @@ def _largest_fitting(scene: Scene, max_cells: float, memory: float | None) -> st
         data["mesh"][key] = value
         return Scene(data, scene.source, scene.description)
 
+    if scene.mesh.kind == "file":
+        return "coarsen the mesh of mesh.file, free memory or raise run.max_cells"
     if scene.mesh.kind == "uniform":
         lo, hi = 1, scene.mesh.n                  # lo fits, hi does not
         if not _fits(with_value("n", lo), max_cells, memory):

@@ -49,7 +49,6 @@ def strip_mesh(family: str, h: float, setup: StripSetup, comm):
     ``h``: ``aligned`` (a grid along x and y) or ``free`` (gmsh, Frontal-Delaunay with blossom
     recombination, the impact scenes' graded family's mesher)."""
     import dolfinx.mesh
-    from mpi4py import MPI
 
     L, W = setup.length, setup.width
     if family == "aligned":
@@ -58,29 +57,9 @@ def strip_mesh(family: str, h: float, setup: StripSetup, comm):
                                              [nx, ny], cell_type=dolfinx.mesh.CellType.quadrilateral)
     if family != "free":
         raise ValueError(f"mesh family must be 'aligned' or 'free', got {family!r}")
-    import gmsh
-    from dolfinx.io import gmshio
+    from fabric_fenicsx.fem.mesh_file import free_rectangle
 
-    if comm.rank == 0:
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add("strip")
-        g = gmsh.model.geo
-        p = [g.addPoint(0, -W / 2, 0), g.addPoint(L, -W / 2, 0), g.addPoint(L, W / 2, 0), g.addPoint(0, W / 2, 0)]
-        lines = [g.addLine(p[i], p[(i + 1) % 4]) for i in range(4)]
-        surface = g.addPlaneSurface([g.addCurveLoop(lines)])
-        g.synchronize()
-        gmsh.model.addPhysicalGroup(2, [surface], 1)
-        for option, value in (("Mesh.MeshSizeMin", h), ("Mesh.MeshSizeMax", h), ("Mesh.Algorithm", 6),
-                              ("Mesh.RecombinationAlgorithm", 1), ("Mesh.RecombineAll", 1)):
-            gmsh.option.setNumber(option, value)
-        gmsh.model.mesh.generate(2)
-    try:
-        msh, _, _ = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
-    finally:
-        if comm.rank == 0:
-            gmsh.finalize()
-    return msh
+    return free_rectangle((0.0, -W / 2), (L, W / 2), h, comm)
 
 
 class StripTest:

@@ -75,7 +75,7 @@ def test_parse_override():
     ("projectile.velocity=fast", "projectile.velocity = 'fast'.*number"),
     ("material.damage=maybe", "material.damage = 'maybe'.*true or false"),
     ("material.damage=1", "material.damage = 1.*true or false"),
-    ("mesh.kind=hex", r"mesh.kind = 'hex'.*\['graded', 'uniform', 'aligned'\]"),
+    ("mesh.kind=hex", r"mesh.kind = 'hex'.*\['graded', 'uniform', 'aligned', 'structured', 'file'\]"),
     ("mesh.n=2.5", "mesh.n = 2.5.*integer"),
     ("boundary.clamped=[\"north\"]", "unknown \\['north'\\].*left"),
     ("boundary.clamped=[]", "at least one"),

@@ -1,0 +1,148 @@
+"""``fabric-fenicsx study tear``: the tear test (:mod:`fabric_fenicsx.studies.tear`).
+
+A 60 mm panel with a 10 mm slit across the warp (``--notch edge``, from the bottom edge, or
+``centre``), pulled along the warp at 5 m/s until the tear runs through, on each mesh family
+(``--families``, default aligned,structured30,structured45,graded; ``file`` with
+``--mesh-file``) and cell size (``--sizes`` in m, default 0.002,0.001): without scatter, and
+with ``--members N`` also N - 1 seeds of ``--scatter``. Writes OUT/tear.csv (a row per pull as
+it ends; a study run again skips the pulls it holds), OUT/tear-<family>-<size>.npz (each
+mesh's final cells, for the picture), OUT/tear.json and OUT/tear.png, and prints the families
+compared at each size.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+PROG = "fabric-fenicsx study tear"
+DEFAULT_FAMILIES = "aligned,structured30,structured45,graded"
+DEFAULT_SIZES = "0.002,0.001"
+
+
+def _plan(args: argparse.Namespace) -> tuple[list[tuple[str, float]], list[str]]:
+    """The meshes (family, size) to pull and the problems with the arguments (none: [])."""
+    from fabric_fenicsx.studies.tear import parse_family
+
+    problems = []
+    try:
+        sizes = [float(s) for s in (args.sizes or DEFAULT_SIZES).split(",")]
+    except ValueError:
+        return [], [f"--sizes must be cell sizes in m separated by commas, got {args.sizes!r}"]
+    if not all(math.isfinite(h) and 0.0002 <= h <= 0.005 for h in sizes):
+        problems.append(f"--sizes must lie in [0.0002, 0.005] m, got {sizes}")
+    families = [f.strip() for f in (args.families or DEFAULT_FAMILIES).split(",")]
+    for f in families:
+        try:
+            parse_family(f)
+        except ValueError as err:
+            problems.append(str(err))
+    if len(set(families)) != len(families) or len(set(sizes)) != len(sizes):
+        problems.append("--families and --sizes must not repeat a value")
+    mesh_file = getattr(args, "mesh_file", None)
+    if "file" in families and not (mesh_file and Path(mesh_file).is_file()):
+        problems.append(f"family 'file' needs --mesh-file naming a gmsh .msh file, got {mesh_file!r}")
+    if args.members < 1:
+        problems.append(f"--members must be >= 1, got {args.members}")
+    return [(f, h) for h in sizes for f in families], problems
+
+
+def _done(path: Path) -> list[dict]:
+    """The rows of tear.csv already written (numbers as floats)."""
+    if not path.exists():
+        return []
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    text = ("family", "notch", "end")
+    return [{k: (v if k in text else float(v)) for k, v in r.items()} for r in rows]
+
+
+def run(args: argparse.Namespace) -> int:
+    from fabric_fenicsx.impact.lock import FolderLock
+    from fabric_fenicsx.impact.scene import InputError, check_output_dir
+
+    plan, problems = _plan(args)
+    notch = getattr(args, "notch", "edge")
+    if notch not in ("edge", "centre"):
+        problems.append(f"--notch must be edge or centre, got {notch!r}")
+    if args.members > 1 and args.scatter not in ("weibull", "fibrils"):
+        problems.append(f"--scatter must be weibull or fibrils, got {args.scatter!r}")
+    if problems:
+        print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
+        return 2
+    out = Path(args.out or "out/study-tear")
+    try:
+        check_output_dir(out)
+        with FolderLock(out, "study tear"):
+            return _run(args, plan, notch, out)
+    except InputError as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+
+
+def _run(args, plan, notch: str, out: Path) -> int:
+    import numpy as np
+
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.material.scatter import StrengthScatter
+    from fabric_fenicsx.studies import tear, tear_report
+    from fabric_fenicsx.surrogate.table import Surrogate
+
+    setup = tear.TearSetup(notch=notch)
+    table = out / "tear.csv"
+    rows = [r for r in _done(table) if r["notch"] == notch]
+    have = {(r["family"], r["h"], int(r["seed"])) for r in rows}
+    if not table.exists():
+        with open(table, "w", newline="") as f:
+            csv.writer(f).writerow(tear_report.COLUMNS)
+    fabric = zylon_as()
+    seeds = [-1, *range(args.members - 1)]
+    t0 = time.perf_counter()
+    say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
+    say(f"{PROG}: {len(plan)} meshes x {len(seeds)} pull(s), {notch} notch, into {out}")
+    surrogate = None
+    for family, h in plan:
+        todo = [s for s in seeds if (family, h, s) not in have]
+        if not todo:
+            say(f"tear: {family} {h * 1e3:g} mm: reused from {table}")
+            continue
+        test = tear.TearTest(fabric, family, h, setup, mesh_file=getattr(args, "mesh_file", None))
+        laws = {s: None if s < 0 else test.laws(StrengthScatter(args.scatter, seed=s)) for s in todo}
+        ranges = [StrengthScatter(args.scatter).damage_range(fabric, *law) for law in laws.values() if law]
+        if surrogate is None or ranges:
+            from fabric_fenicsx.material.scatter import DamageRange
+            rng = (DamageRange(np.min([r.mu_crit_min for r in ranges], axis=0),
+                               np.max([r.mu_complete_max for r in ranges], axis=0)) if ranges else None)
+            surrogate = Surrogate(fabric, progress=False, workers=1, damage_range=rng)
+        for seed in todo:
+            r = test.pull(surrogate, laws[seed], progress=lambda line: say(f"  {family} {h * 1e3:g} mm: {line}"))
+            r["seed"] = seed
+            cells = r.pop("cells")
+            r.pop("history")
+            if seed < 0:
+                np.savez_compressed(out / f"tear-{family}-{h * 1e3:g}mm.npz", **cells)
+            with open(table, "a", newline="") as f:
+                csv.writer(f).writerow([r[c] if isinstance(r[c], str) else f"{r[c]:.10g}" for c in tear_report.COLUMNS])
+            rows.append(r)
+            say(f"tear: {family} {h * 1e3:g} mm seed {seed}: tear load {r['tear_load']:.1f} N, work "
+                f"{r['work_per_length']:.2f} J/m, path {r['path_angle']:.1f} deg, {r['end']} "
+                f"({r['seconds']:.1f} s; {time.perf_counter() - t0:.0f} s elapsed)")
+    rows = [r for r in rows if (r["family"], r["h"]) in set(plan)]
+    comparison = tear_report.compare_families(rows)
+    report = {"setup": tear.setup_dict(setup), "rows": rows, "families_compared": comparison,
+              "wall_time_s": time.perf_counter() - t0}
+    (out / "tear.json").write_text(json.dumps(report, indent=1, default=float))
+    cells = {}
+    for family, h in plan:
+        f = out / f"tear-{family}-{h * 1e3:g}mm.npz"
+        if f.exists():
+            with np.load(f) as data:
+                cells[(family, h)] = {k: data[k] for k in data.files}
+    tear_report.plot_paths(cells, out / "tear.png", f"tear paths, {notch} notch (warp along x, pulled along x)")
+    print(tear_report.format_report(rows, comparison))
+    print(f"report in {out / 'tear.json'}, picture {out / 'tear.png'}")
+    return 0

@@ -1,0 +1,320 @@
+"""The tear test: a fabric panel with a slit across the loaded yarns, pulled until the tear runs.
+
+A square panel (default 60 mm, warp along x) is clamped along its left edge; its right edge
+moves at a constant speed along x (default 5 m/s, a strain rate of 83 /s, as the strip test's
+100 /s), so that the warp carries the load. A slit cuts the warp yarns along y at x = 0: from the
+bottom edge (``notch = "edge"``) or about the centre (``"centre"``), made by removing the cells
+it crosses. The membrane, the reduced element with its hourglass control, the surrogate, the
+damping and the removal rules (deletion when both yarns are broken, erosion at
+``erosion_strain``) are the impact scenes'.
+
+The panel is meshed with cells of one size ``h`` (the tear's tip meets the same cells all the
+way) in families that tell the cells' orientation from their shape:
+
+* ``aligned``: a grid of squares along the yarns;
+* ``structured<deg>``, e.g. ``structured30``, ``structured45``: squares of side h in rows turned
+  that many degrees from the yarns over the middle of the panel
+  (:mod:`fabric_fenicsx.fem.structured_patch`), unstructured quadrilaterals of size h around;
+* ``graded``: gmsh's unstructured quadrilaterals (the graded scenes' mesher) at size h;
+* ``file``: a user's gmsh file of the panel (:func:`fabric_fenicsx.fem.mesh_file.read_square_msh`).
+
+A pull reports (:meth:`TearTest.pull`): the **tear load**, the end force when the first cell
+beyond the slit breaks (its warp alpha below 1/2, or removed); the peak force; the **work per
+unit length of tear**, the energy given up by the breaking yarns (damage dissipation plus the
+stored energy of removed cells) from the tear's start to its end over its length; and the **path's angle**, the principal direction of the broken
+cells' centres (90 degrees: along the fill yarns, straight across the load). A tear that
+follows the yarns has the same load, work and angle on every family; one that follows the
+cells does not. ``fabric-fenicsx study tear`` is its command line.
+"""
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+__all__ = ["TearSetup", "parse_family", "slit_cells", "path_angle", "work_per_length", "TearTest"]
+
+BROKEN_ALPHA = 0.5
+"""A cell is broken once its warp alpha (the fraction of fibrils left) falls below this."""
+
+
+@dataclass(frozen=True)
+class TearSetup:
+    """Geometry and loading of a tear test (SI units; angles in degrees)."""
+
+    side: float = 0.06
+    slit: float = 0.01           # length of the slit (m): from the bottom edge, or centred
+    notch: str = "edge"          # "edge" | "centre"
+    speed: float = 5.0           # m/s, the right edge along x
+    damping: float = 0.1         # of critical at the unit cell, as run.damping
+    hourglass: float = 0.05
+    dt_safety: float = 0.8
+    erosion_strain: float = 1.0  # material.erosion_strain
+    band: float = 0.4            # broken cells count for the tear within |x| < band * side
+
+    def __post_init__(self) -> None:
+        if self.notch not in ("edge", "centre"):
+            raise ValueError(f"notch = {self.notch!r}: must be 'edge' or 'centre'")
+        for name in ("side", "slit", "speed", "damping", "hourglass", "dt_safety", "erosion_strain", "band"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r}: must be a finite number > 0")
+        if self.slit >= 0.5 * self.side:
+            raise ValueError(f"slit = {self.slit!r} m: must be shorter than half the panel ({self.side / 2!r} m)")
+
+    @property
+    def slit_ends(self) -> tuple[float, float]:
+        """(y0, y1) of the slit along x = 0."""
+        a = self.side / 2
+        return (-a, -a + self.slit) if self.notch == "edge" else (-self.slit / 2, self.slit / 2)
+
+    @property
+    def ligament(self) -> float:
+        """The length the tear can run (m): to the far edge (edge notch) or to one edge (centre)."""
+        return self.side - self.slit if self.notch == "edge" else (self.side - self.slit) / 2
+
+
+def parse_family(family: str) -> tuple[str, float | None]:
+    """("aligned" | "structured" | "graded" | "file", rotation in degrees or None) of a family
+    name; ``structured30`` is the structured patch at 30 degrees."""
+    if family in ("aligned", "graded", "file"):
+        return family, None
+    m = re.fullmatch(r"structured(-?\d+(?:\.\d+)?)", family)
+    if m:
+        return "structured", float(m.group(1))
+    raise ValueError(f"mesh family {family!r}: must be aligned, graded, file or structured<degrees> "
+                     "(e.g. structured30, structured45)")
+
+
+def panel_mesh(family: str, h: float, setup: TearSetup, comm, mesh_file: str | None = None):
+    """The panel [-side/2, side/2]^2 meshed by ``family`` with cells of size ``h`` (module
+    docstring). A ``structured`` family's patch is as large as the panel allows."""
+    from fabric_fenicsx.fem.mesh import MeshSpec, load_mesh, rectilinear_square
+    from fabric_fenicsx.fem.mesh_file import free_rectangle, read_square_msh
+    from fabric_fenicsx.fem.structured_patch import largest_patch_radius
+
+    kind, rotation = parse_family(family)
+    a = setup.side / 2
+    if kind == "aligned":
+        n = max(1, round(setup.side / h))
+        n += 1 - n % 2            # odd: the slit runs through the middle of a column of cells
+        nodes = np.linspace(-a, a, n + 1)
+        return rectilinear_square(nodes, nodes, comm)[0]
+    if kind == "graded":
+        return free_rectangle((-a, -a), (a, a), h, comm)
+    if kind == "file":
+        if not mesh_file:
+            raise ValueError("mesh family 'file' needs a mesh file (--mesh-file)")
+        return read_square_msh(mesh_file, setup.side, comm)[0]
+    radius = largest_patch_radius(setup.side, (0.0, 0.0), rotation, h)
+    radius = math.floor(radius / h) * h
+    spec = MeshSpec(side=setup.side, h_centre=h, h_edge=h, refine_radius=radius, centre=(0.0, 0.0),
+                    grading=1.0, rotation=rotation)
+    return load_mesh(spec, comm)[0]
+
+
+def _inside(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(n_points, n_cells) whether each point lies in each convex quadrilateral (corners in
+    perimeter order, either orientation), edges included."""
+    p = points[:, None, None, :]
+    c = corners[None]
+    e = np.roll(c, -1, axis=2) - c
+    cross = e[..., 0] * (p[..., 1] - c[..., 1]) - e[..., 1] * (p[..., 0] - c[..., 0])
+    return np.all(cross >= 0, axis=2) | np.all(cross <= 0, axis=2)
+
+
+def slit_cells(corners: np.ndarray, setup: TearSetup) -> np.ndarray:
+    """Indices of the cells (reference corners (n, 4, 2), perimeter order) that the slit
+    crosses: those holding a point of it, sampled at a hundredth of the smallest cell. The slit
+    lies a millionth of the panel off x = 0 so that it never runs along a column of edges, and
+    ends a millionth short of its tip so that a tip on a row of edges takes no cell beyond."""
+    y0, y1 = setup.slit_ends
+    edge = np.linalg.norm(np.roll(corners, -1, axis=1) - corners, axis=2).min()
+    y1 -= 1e-6 * setup.side                   # a tip on a row of edges takes no cell beyond it
+    ys = np.linspace(y0, y1, max(2, int(math.ceil((y1 - y0) / (0.01 * edge))) + 1))
+    points = np.column_stack((np.full(ys.size, 1e-6 * setup.side), ys))
+    hit = np.zeros(corners.shape[0], dtype=bool)
+    for chunk in np.array_split(np.arange(points.shape[0]), max(1, points.shape[0] // 200)):
+        hit |= _inside(points[chunk], corners).any(axis=0)
+    return np.flatnonzero(hit)
+
+
+def path_angle(centres: np.ndarray) -> tuple[float, float]:
+    """(angle from x in degrees, in [0, 180); spread across the path, m) of the principal
+    direction of the broken cells' centres ``centres`` (n, 2): the line a tear runs along.
+    NaN for fewer than two cells."""
+    if centres.shape[0] < 2:
+        return math.nan, math.nan
+    d = centres - centres.mean(axis=0)
+    w, v = np.linalg.eigh(d.T @ d / centres.shape[0])
+    direction = v[:, 1]
+    return float(math.degrees(math.atan2(direction[1], direction[0])) % 180.0), float(math.sqrt(max(w[0], 0.0)))
+
+
+def yarn_deviation(angle: float) -> float:
+    """Degrees between a direction ``angle`` (from x, the warp) and the nearest yarn."""
+    r = angle % 90.0
+    return min(r, 90.0 - r)
+
+
+def work_per_length(length: np.ndarray, energy: np.ndarray) -> float:
+    """The energy given up by the tear per unit of its length (J/m): the energy's rise from the
+    sample before the tear first grew to the last sample, over the tear's final length (its
+    advance across the load, not the length of a path that zig-zags); NaN if it never grew."""
+    length, energy = np.asarray(length, float), np.asarray(energy, float)
+    grown = np.flatnonzero(length > 0.0)
+    if grown.size == 0:
+        return math.nan
+    start = energy[grown[0] - 1] if grown[0] > 0 else 0.0
+    return float((energy[-1] - start) / length[-1])
+
+
+class TearTest:
+    """A panel of ``fabric`` on one mesh (``family``, cell size ``h``), pulled by :meth:`pull`
+    (once per strength-scatter seed if wanted: each pull starts from the reference state). Serial
+    or on the ranks of ``comm``."""
+
+    def __init__(self, fabric, family: str, h: float, setup: TearSetup = TearSetup(), comm=None,
+                 mesh_file: str | None = None):
+        from mpi4py import MPI
+
+        from fabric_fenicsx.fem.membrane import Membrane
+        from fabric_fenicsx.fem.terms import HourglassControl
+        from fabric_fenicsx.fem.timestep import damping_coefficient, unit_cell_frequency
+        from fabric_fenicsx.fem.yarn_stress import straight_yarn_modulus
+        from fabric_fenicsx.impact.output import cell_corners
+
+        self.comm = comm or MPI.COMM_WORLD
+        self.fabric, self.family, self.h, self.setup = fabric, family, float(h), setup
+        self.msh = panel_mesh(family, h, setup, self.comm, mesh_file)
+        self.membrane = m = Membrane(self.msh, angle=0.0, quadrature_degree=1)
+        self.k_straight = straight_yarn_modulus(fabric)
+        m.add_term(HourglassControl(setup.hourglass, self.k_straight))
+        self.beta = damping_coefficient(setup.damping, unit_cell_frequency(fabric, self.k_straight))
+        a, tol = setup.side / 2, 1e-9 * setup.side
+        self.fixed = m.boundary_dofs(lambda x: np.abs(x[0] + a) < tol)
+        self.pulled = m.boundary_dofs(lambda x: np.abs(x[0] - a) < tol)
+        n = m.n_owned_dofs
+        self.fixed_x = self.fixed[(self.fixed % 3 == 0) & (self.fixed < n)]
+        self.pulled_x = self.pulled[(self.pulled % 3 == 0) & (self.pulled < n)]
+        X = m.V.tabulate_dof_coordinates()[:, :2]
+        self.corners = X[cell_corners(m.V, m.n_cells)]
+        self.centres = self.corners.mean(axis=1)
+        self.slit = slit_cells(self.corners, setup)
+        self.n_cells = self.comm.allreduce(m.n_cells)
+        self.cell_size = float(self.comm.allreduce(
+            float(np.min(np.linalg.norm(np.diff(self.corners, axis=1, append=self.corners[:, :1]), axis=-1),
+                         initial=np.inf)), op=MPI.MIN))
+        in_band = np.abs(self.centres[:, 0]) < setup.band * setup.side
+        in_band[self.slit] = False
+        self._watched = np.flatnonzero(in_band)
+
+    def laws(self, scatter):
+        """The cell laws (mu_crit, scale), each (n_points, 2), of ``scatter`` on this mesh."""
+        from fabric_fenicsx.material.scatter import cell_laws
+
+        return cell_laws(scatter, self.fabric, 0.0, self.corners)
+
+    def _tear_length(self, broken: np.ndarray) -> float:
+        """How far the tear has run beyond the slit's tip (m; over all ranks)."""
+        from mpi4py import MPI
+
+        y0, y1 = self.setup.slit_ends
+        y = self.centres[self._watched[broken[self._watched]], 1]
+        local = (float(np.max(y, initial=-np.inf)) - y1 if self.setup.notch == "edge"
+                 else float(np.max(np.abs(y), initial=-np.inf)) - y1)
+        return max(0.0, self.comm.allreduce(local, op=MPI.MAX))
+
+    def pull(self, surrogate, laws=None, progress=None) -> dict:
+        """Pull the panel with the cell laws ``laws`` (None: the fabric's own law) until the tear
+        has run through, the force has fallen below a tenth of its peak, or the right edge has
+        moved three times the warp's failure strain. Returns the measures of the module
+        docstring, the sampled history (``history``: t, force, tear length, energy) and the
+        final cells (``cells``: centres, corners, warp alpha, removed, slit) for pictures."""
+        from mpi4py import MPI
+
+        from fabric_fenicsx.fem.explicit import CentralDifference
+        from fabric_fenicsx.fem.yarn_stress import YarnStress
+        from fabric_fenicsx.impact.removal import CellRemoval
+
+        t0 = time.perf_counter()
+        m, s = self.membrane, self.setup
+        m.set_displacement(np.zeros(m.n_owned_dofs))
+        material = YarnStress(surrogate, m.quadrature_weights_detJ, True, self.beta,
+                              straight_modulus=self.k_straight, laws=laws)
+        for term in m.terms:
+            if term.follows_integrity:
+                term.follow(lambda: material.state, material.tension)
+        removal = CellRemoval(m, material, np.zeros(0, dtype=np.int64), s.erosion_strain)
+        removal.remove(self.slit, np.zeros(0, dtype=np.int64))
+        removal.deleted_cells[:] = False          # the slit is not a failure
+        m.share_live_cells()
+        cd = CentralDifference(m, material, self.fabric.areal_density,
+                               np.concatenate([self.fixed, self.pulled]), cell_size=self.cell_size,
+                               safety=s.dt_safety)
+        cd.v[self.pulled_x] = s.speed
+        dt = cd.stable_dt()
+        E_fail = surrogate.E_fail[0]
+        t_max = 3.0 * (math.sqrt(1 + 2 * E_fail) - 1.0) * s.side / s.speed
+        npc = m.n_points_per_cell
+        history, peak, first = [], 0.0, None
+        end = "time limit"
+        while cd.time < t_max:
+            cd.step(dt)
+            delete, erode = removal.select()
+            if self.comm.allreduce(int(delete.size + erode.size), op=MPI.SUM):
+                removal.remove(delete, erode)
+                m.share_live_cells()
+            if cd.n_steps % 10 == 0:
+                dt = cd.stable_dt()
+            force = -self.comm.allreduce(float(np.sum(cd._f_int[self.fixed_x])), op=MPI.SUM)
+            broken = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
+            length = self._tear_length(broken)
+            e = {k: self.comm.allreduce(v, op=MPI.SUM) for k, v in material.energies().items()}
+            history.append((cd.time, force, length, e["damage_dissipation"] + e["erosion_energy"]))
+            peak = max(peak, force)
+            if first is None and length > 0.0:
+                first = force
+            if progress is not None and cd.n_steps % 2000 == 0:
+                progress(f"t = {cd.time * 1e3:.3f} ms, force {force:.1f} N, tear {length * 1e3:.1f} mm")
+            if length >= s.ligament - 1.5 * self.h:
+                end = "torn through"
+                break
+            if first is not None and force < 0.1 * peak:
+                end = "force fell below a tenth of its peak"
+                break
+        hist = np.array(history).reshape(-1, 4)
+        broken_final = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
+        tear_cells = self._watched[broken_final[self._watched]]
+        centres = _gather(self.comm, self.centres[tear_cells])
+        angle, spread = path_angle(centres) if centres is not None else (math.nan, math.nan)
+        e = {k: self.comm.allreduce(v, op=MPI.SUM) for k, v in material.energies().items()}
+        return {"family": self.family, "h": self.h, "n_cells": self.n_cells, "notch": s.notch,
+                "tear_load": first if first is not None else math.nan, "peak_force": peak,
+                "work_per_length": work_per_length(hist[:, 2], hist[:, 3]),
+                "tear_length": float(hist[-1, 2]) if hist.size else 0.0,
+                "path_angle": angle, "path_deviation": yarn_deviation(angle) if math.isfinite(angle) else math.nan,
+                "path_spread": spread, "n_tear_cells": int(self.comm.allreduce(tear_cells.size)),
+                "deleted": int(self.comm.allreduce(int(removal.deleted_cells.sum()))),
+                "eroded": int(self.comm.allreduce(int(removal.eroded_cells.sum()))),
+                "damage_dissipation": e["damage_dissipation"], "erosion_energy": e["erosion_energy"],
+                "viscous_dissipation": e["viscous_dissipation"], "end": end, "steps": cd.n_steps,
+                "seconds": time.perf_counter() - t0, "history": hist,
+                "cells": {"corners": _gather(self.comm, self.corners),
+                          "alpha1": _gather(self.comm, material.alpha1.reshape(-1, npc).min(axis=1)),
+                          "removed": _gather(self.comm, ~removal.live_cells),
+                          "slit": _gather(self.comm, np.isin(np.arange(m.n_cells), self.slit))}}
+
+
+def _gather(comm, local: np.ndarray):
+    """``local`` of every rank stacked on rank 0 (None elsewhere)."""
+    parts = comm.gather(np.asarray(local), root=0)
+    return np.concatenate(parts) if comm.rank == 0 else None
+
+
+def setup_dict(setup: TearSetup) -> dict:
+    """The setup as a plain dict (for the report)."""
+    return asdict(setup)

@@ -1,0 +1,98 @@
+"""The tear test (fabric_fenicsx.studies.tear): its measures against analytic cases, a pull on
+the aligned grid whose tear runs straight along the fill, and the command line's report and
+refusals."""
+
+import csv
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from fabric_fenicsx.studies.tear import (TearSetup, parse_family, path_angle, slit_cells, work_per_length,
+                                         yarn_deviation)
+
+
+def _grid(n: int, side: float) -> np.ndarray:
+    """Corners (n*n, 4, 2), perimeter order, of n x n squares on [-side/2, side/2]^2."""
+    x = np.linspace(-side / 2, side / 2, n + 1)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    return np.stack([np.column_stack((x[i + a], x[j + b])) for a, b in ((0, 0), (1, 0), (1, 1), (0, 1))], axis=1)
+
+
+@pytest.mark.parametrize("notch", ["edge", "centre"])
+def test_the_slit_takes_one_column_of_cells_of_its_length(notch):
+    setup = TearSetup(side=0.06, slit=0.012, notch=notch)
+    corners = _grid(15, 0.06)                    # 4 mm cells, x = 0 in the middle of a column
+    cells = slit_cells(corners, setup)
+    centres = corners[cells].mean(axis=1)
+    assert np.allclose(centres[:, 0], 0.0)
+    y0, y1 = setup.slit_ends
+    assert cells.size == math.ceil((y1 - y0) / 0.004 - 1e-9) + (0 if notch == "edge" else 1)
+    assert centres[:, 1].min() < y0 + 0.004 and centres[:, 1].max() > y1 - 0.004
+
+
+def test_the_path_angle_is_the_line_the_cells_lie_along():
+    s = np.linspace(0, 0.02, 11)
+    for angle in (0.0, 30.0, 90.0, 120.0):
+        t = math.radians(angle)
+        found, spread = path_angle(np.column_stack((s * math.cos(t), s * math.sin(t))))
+        assert found == pytest.approx(angle, abs=1e-9) and spread == pytest.approx(0.0, abs=1e-9)
+    assert yarn_deviation(120.0) == pytest.approx(30.0) and yarn_deviation(87.5) == pytest.approx(2.5)
+    assert math.isnan(path_angle(np.zeros((1, 2)))[0])
+
+
+def test_the_work_per_length_counts_from_the_tears_start():
+    length = np.concatenate((np.zeros(5), np.linspace(0.001, 0.05, 50)))
+    energy = np.concatenate((np.linspace(0.0, 0.2, 5), 0.2 + 9.0 * np.linspace(0.001, 0.05, 50)))
+    assert work_per_length(length, energy) == pytest.approx(9.0)
+    assert math.isnan(work_per_length(np.zeros(5), np.ones(5)))
+
+
+def test_families_are_named_and_bad_ones_refused():
+    assert parse_family("structured30") == ("structured", 30.0)
+    assert parse_family("aligned") == ("aligned", None)
+    with pytest.raises(ValueError, match="structured<degrees>"):
+        parse_family("rotated")
+    with pytest.raises(ValueError, match="slit"):
+        TearSetup(side=0.06, slit=0.04)
+
+
+def test_a_pull_on_the_aligned_grid_tears_straight_along_the_fill():
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.studies.tear import TearTest
+    from fabric_fenicsx.surrogate.table import Surrogate
+
+    fabric = zylon_as()
+    test = TearTest(fabric, "aligned", 0.004, TearSetup())
+    r = test.pull(Surrogate(fabric, progress=False, workers=1))
+    assert r["end"] == "torn through"
+    assert r["path_deviation"] == pytest.approx(0.0, abs=1e-6)
+    # the tear grows before the panel's peak and below the unnotched width's strength (about
+    # 1495 N per 10 mm, docs/mesh_independence.md)
+    assert 0 < r["tear_load"] <= r["peak_force"] < 1495.0 * 60 / 10
+    assert r["work_per_length"] > 0 and r["damage_dissipation"] > 0
+
+
+def test_the_command_writes_its_report_and_refuses_bad_input(tmp_path):
+    cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "study", "tear", "--quiet"]
+    bad = subprocess.run([*cmd, "--families", "aligned,rotated", "--out", str(tmp_path / "bad")],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "rotated" in bad.stderr and "Traceback" not in bad.stderr
+    assert not (tmp_path / "bad").exists()
+    out = tmp_path / "tear"
+    ok = subprocess.run([*cmd, "--families", "aligned,structured45", "--sizes", "0.004", "--out", str(out)],
+                        capture_output=True, text=True, timeout=900)
+    assert ok.returncode == 0, ok.stderr[-3000:]
+    with open(out / "tear.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["family"] for r in rows] == ["aligned", "structured45"]
+    report = json.loads((out / "tear.json").read_text())
+    assert report["families_compared"]["4 mm"]["families"] == ["aligned", "structured45"]
+    assert (out / "tear.png").stat().st_size > 0
+    again = subprocess.run([*cmd[:-1], "--families", "aligned,structured45", "--sizes", "0.004", "--out", str(out)],
+                           capture_output=True, text=True, timeout=900)
+    assert again.returncode == 0 and again.stdout.count("reused") == 2
