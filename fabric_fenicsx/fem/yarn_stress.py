@@ -92,12 +92,25 @@ class YarnStress:
         self.relax_stats = RelaxStats()
         self.E_lo, self.E_hi = surrogate.E_table
         self.mu_crit = self.scale = None
+        self.damage_drive = None
+        """None (the thesis's rule: a point's damage follows its own strains) or a callable
+        (E1, E2, live) -> (Ebar1, Ebar2) over every point giving the strains that drive the
+        damage (:class:`~fabric_fenicsx.fem.yarn_average.YarnAverage`)."""
         if laws is not None:
             mu_crit, scale = (np.asarray(x, float) for x in laws)
             if mu_crit.shape != (n, 2) or scale.shape != (n, 2):
                 raise ValueError(f"laws must be two arrays of shape ({n}, 2), got {mu_crit.shape} "
                                  f"and {scale.shape}")
             self.mu_crit, self.scale = mu_crit.T.copy(), scale.T.copy()   # (2, n): rows per yarn
+
+    def _driving_strains(self, r1, r2):
+        """The live points' strains that drive their damage (``damage_drive``) from their own
+        tension-field strains (r1, r2)."""
+        n = self.w.size
+        R1, R2 = np.zeros(n), np.zeros(n)
+        R1[self._sel], R2[self._sel] = r1, r2
+        D1, D2 = self.damage_drive(R1, R2, self.live)
+        return D1[self._sel], D2[self._sel]
 
     # ------------------------------------------------------------------ surrogate access
     def _clip(self, E: np.ndarray) -> np.ndarray:
@@ -208,7 +221,12 @@ class YarnStress:
         if self.damage:
             laws = ({} if self.mu_crit is None else
                     {"critical_stretch": self.mu_crit[:, sel], "softening_scale": self.scale[:, sel]})
-            p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
+            if self.damage_drive is None:
+                p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
+            else:   # the damage from the driving strains, the stresses from the point's own
+                d1, d2 = self._driving_strains(r1, r2)
+                _, _, b1, b2 = self.sur.update(d1, d2, a1h[sel], a2h[sel], **laws)
+                p1, p2, _, _ = self.sur.evaluate(r1, r2, b1, b2)
             a1, a2, changed = np.empty(n), np.empty(n), np.empty(b1.size, np.int64)
             changed = changed[:yarn_stress_kernel.new_damage(a1h, a2h, self.live, b1, b2, a1, a2,
                                                              changed)]

@@ -19,10 +19,11 @@ way) in families that tell the cells' orientation from their shape:
 * ``file``: a user's gmsh file of the panel (:func:`fabric_fenicsx.fem.mesh_file.read_square_msh`).
 
 A pull reports (:meth:`TearTest.pull`): the **tear load**, the end force when the first cell
-beyond the slit breaks (its warp alpha below 1/2, or removed); the peak force; the **work per
+beyond the slit breaks (its warp alpha below 1/2, or removed) and joins the slit; the peak force; the **work per
 unit length of tear**, the energy given up by the breaking yarns (damage dissipation plus the
-stored energy of removed cells) from the tear's start to its end over its length; and the **path's angle**, the principal direction of the broken
-cells' centres (90 degrees: along the fill yarns, straight across the load). A tear that
+stored energy of removed cells) while the tear grew, over its length; and the **path's angle**, the principal direction of the centres of the
+tear's cells (the broken cells joined to the slit through broken cells; 90 degrees: along the
+fill yarns, straight across the load). A tear that
 follows the yarns has the same load, work and angle on every family; one that follows the
 cells does not. ``fabric-fenicsx study tear`` is its command line.
 """
@@ -53,12 +54,17 @@ class TearSetup:
     hourglass: float = 0.05
     dt_safety: float = 0.8
     erosion_strain: float = 1.0  # material.erosion_strain
-    band: float = 0.4            # broken cells count for the tear within |x| < band * side
+    failure: str = "thesis"      # "thesis" | "yarn_average" (fabric_fenicsx.fem.yarn_average)
+    failure_length: float = 0.0  # m: the yarn average's length (yarn_average only)
 
     def __post_init__(self) -> None:
+        if self.failure not in ("thesis", "yarn_average"):
+            raise ValueError(f"failure = {self.failure!r}: must be 'thesis' or 'yarn_average'")
+        if self.failure == "yarn_average" and not self.failure_length > 0:
+            raise ValueError(f"failure_length = {self.failure_length!r}: the yarn average needs a length > 0 m")
         if self.notch not in ("edge", "centre"):
             raise ValueError(f"notch = {self.notch!r}: must be 'edge' or 'centre'")
-        for name in ("side", "slit", "speed", "damping", "hourglass", "dt_safety", "erosion_strain", "band"):
+        for name in ("side", "slit", "speed", "damping", "hourglass", "dt_safety", "erosion_strain"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} = {value!r}: must be a finite number > 0")
@@ -161,21 +167,23 @@ def yarn_deviation(angle: float) -> float:
 
 
 def work_per_length(length: np.ndarray, energy: np.ndarray) -> float:
-    """The energy given up by the tear per unit of its length (J/m): the energy's rise from the
-    sample before the tear first grew to the last sample, over the tear's final length (its
-    advance across the load, not the length of a path that zig-zags); NaN if it never grew."""
+    """The energy given up while the tear grew, per unit of its length (J/m): the energy's rise
+    from the sample before the tear first grew to the sample where it last grew, over its
+    length then (its advance across the load, not the length of a path that zig-zags). Energy
+    given up after the tear stopped (a clamp failing) is not counted; NaN if it never grew."""
     length, energy = np.asarray(length, float), np.asarray(energy, float)
     grown = np.flatnonzero(length > 0.0)
     if grown.size == 0:
         return math.nan
     start = energy[grown[0] - 1] if grown[0] > 0 else 0.0
-    return float((energy[-1] - start) / length[-1])
+    last = int(np.flatnonzero(np.diff(length, prepend=0.0) > 0.0)[-1])
+    return float((energy[last] - start) / length[last])
 
 
 class TearTest:
     """A panel of ``fabric`` on one mesh (``family``, cell size ``h``), pulled by :meth:`pull`
     (once per strength-scatter seed if wanted: each pull starts from the reference state). Serial
-    or on the ranks of ``comm``."""
+    One rank only (the tear is traced from cell to cell)."""
 
     def __init__(self, fabric, family: str, h: float, setup: TearSetup = TearSetup(), comm=None,
                  mesh_file: str | None = None):
@@ -188,6 +196,8 @@ class TearTest:
         from fabric_fenicsx.impact.output import cell_corners
 
         self.comm = comm or MPI.COMM_WORLD
+        if self.comm.size > 1:
+            raise ValueError("the tear test runs on one rank (its tear is traced cell to cell); run it without mpirun")
         self.fabric, self.family, self.h, self.setup = fabric, family, float(h), setup
         self.msh = panel_mesh(family, h, setup, self.comm, mesh_file)
         self.membrane = m = Membrane(self.msh, angle=0.0, quadrature_degree=1)
@@ -208,9 +218,22 @@ class TearTest:
         self.cell_size = float(self.comm.allreduce(
             float(np.min(np.linalg.norm(np.diff(self.corners, axis=1, append=self.corners[:, :1]), axis=-1),
                          initial=np.inf)), op=MPI.MIN))
-        in_band = np.abs(self.centres[:, 0]) < setup.band * setup.side
-        in_band[self.slit] = False
-        self._watched = np.flatnonzero(in_band)
+        from scipy.sparse import csr_matrix
+
+        nodes = cell_corners(m.V, m.n_cells)
+        incidence = csr_matrix((np.ones(nodes.size), (np.repeat(np.arange(m.n_cells), 4), nodes.ravel())))
+        self._adjacent = (incidence @ incidence.T).tocsr()      # cells that share a node
+
+    def _yarn_average(self):
+        """The driving strains of the yarn-average rule on this mesh (built once)."""
+        if getattr(self, "_average", None) is None:
+            from fabric_fenicsx.fem.yarn_average import YarnAverage
+
+            x, y = self.corners[..., 0], self.corners[..., 1]
+            areas = 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
+            self._average = YarnAverage(self.centres, areas, (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
+                                        self.setup.failure_length, self.comm)
+        return self._average
 
     def laws(self, scatter):
         """The cell laws (mu_crit, scale), each (n_points, 2), of ``scatter`` on this mesh."""
@@ -218,15 +241,22 @@ class TearTest:
 
         return cell_laws(scatter, self.fabric, 0.0, self.corners)
 
-    def _tear_length(self, broken: np.ndarray) -> float:
-        """How far the tear has run beyond the slit's tip (m; over all ranks)."""
-        from mpi4py import MPI
+    def tear_cells(self, broken: np.ndarray) -> np.ndarray:
+        """The cells of the tear: the broken cells (``broken``, a mask) joined to the slit through
+        broken cells sharing a node (damage elsewhere, at a clamp, is not the tear)."""
+        from scipy.sparse.csgraph import connected_components
 
-        y0, y1 = self.setup.slit_ends
-        y = self.centres[self._watched[broken[self._watched]], 1]
-        local = (float(np.max(y, initial=-np.inf)) - y1 if self.setup.notch == "edge"
-                 else float(np.max(np.abs(y), initial=-np.inf)) - y1)
-        return max(0.0, self.comm.allreduce(local, op=MPI.MAX))
+        keep = np.flatnonzero(broken | np.isin(np.arange(broken.size), self.slit))
+        _, label = connected_components(self._adjacent[keep][:, keep], directed=False)
+        torn = np.isin(label, label[np.isin(keep, self.slit)])
+        cells = keep[torn]
+        return cells[~np.isin(cells, self.slit)]
+
+    def tear_length(self, cells: np.ndarray) -> float:
+        """How far the tear ``cells`` has run across the load beyond the slit's tip (m)."""
+        y1 = self.setup.slit_ends[1]
+        y = self.centres[cells, 1]
+        return max(0.0, float(np.max(y if self.setup.notch == "edge" else np.abs(y), initial=-np.inf)) - y1)
 
     def pull(self, surrogate, laws=None, progress=None) -> dict:
         """Pull the panel with the cell laws ``laws`` (None: the fabric's own law) until the tear
@@ -234,8 +264,6 @@ class TearTest:
         moved three times the warp's failure strain. Returns the measures of the module
         docstring, the sampled history (``history``: t, force, tear length, energy) and the
         final cells (``cells``: centres, corners, warp alpha, removed, slit) for pictures."""
-        from mpi4py import MPI
-
         from fabric_fenicsx.fem.explicit import CentralDifference
         from fabric_fenicsx.fem.yarn_stress import YarnStress
         from fabric_fenicsx.impact.removal import CellRemoval
@@ -245,6 +273,8 @@ class TearTest:
         m.set_displacement(np.zeros(m.n_owned_dofs))
         material = YarnStress(surrogate, m.quadrature_weights_detJ, True, self.beta,
                               straight_modulus=self.k_straight, laws=laws)
+        if s.failure == "yarn_average":
+            material.damage_drive = self._yarn_average()
         for term in m.terms:
             if term.follows_integrity:
                 term.follow(lambda: material.state, material.tension)
@@ -265,15 +295,16 @@ class TearTest:
         while cd.time < t_max:
             cd.step(dt)
             delete, erode = removal.select()
-            if self.comm.allreduce(int(delete.size + erode.size), op=MPI.SUM):
+            if delete.size + erode.size:
                 removal.remove(delete, erode)
                 m.share_live_cells()
-            if cd.n_steps % 10 == 0:
-                dt = cd.stable_dt()
-            force = -self.comm.allreduce(float(np.sum(cd._f_int[self.fixed_x])), op=MPI.SUM)
+            if cd.n_steps % 10:
+                continue
+            dt = cd.stable_dt()
+            force = -float(np.sum(cd._f_int[self.fixed_x]))
             broken = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
-            length = self._tear_length(broken)
-            e = {k: self.comm.allreduce(v, op=MPI.SUM) for k, v in material.energies().items()}
+            length = self.tear_length(self.tear_cells(broken))
+            e = material.energies()
             history.append((cd.time, force, length, e["damage_dissipation"] + e["erosion_energy"]))
             peak = max(peak, force)
             if first is None and length > 0.0:
@@ -288,31 +319,22 @@ class TearTest:
                 break
         hist = np.array(history).reshape(-1, 4)
         broken_final = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
-        tear_cells = self._watched[broken_final[self._watched]]
-        centres = _gather(self.comm, self.centres[tear_cells])
-        angle, spread = path_angle(centres) if centres is not None else (math.nan, math.nan)
-        e = {k: self.comm.allreduce(v, op=MPI.SUM) for k, v in material.energies().items()}
+        tear_cells = self.tear_cells(broken_final)
+        angle, spread = path_angle(self.centres[tear_cells])
+        e = material.energies()
         return {"family": self.family, "h": self.h, "n_cells": self.n_cells, "notch": s.notch,
                 "tear_load": first if first is not None else math.nan, "peak_force": peak,
                 "work_per_length": work_per_length(hist[:, 2], hist[:, 3]),
                 "tear_length": float(hist[-1, 2]) if hist.size else 0.0,
                 "path_angle": angle, "path_deviation": yarn_deviation(angle) if math.isfinite(angle) else math.nan,
-                "path_spread": spread, "n_tear_cells": int(self.comm.allreduce(tear_cells.size)),
-                "deleted": int(self.comm.allreduce(int(removal.deleted_cells.sum()))),
-                "eroded": int(self.comm.allreduce(int(removal.eroded_cells.sum()))),
+                "path_spread": spread, "n_tear_cells": int(tear_cells.size),
+                "deleted": int(removal.deleted_cells.sum()), "eroded": int(removal.eroded_cells.sum()),
                 "damage_dissipation": e["damage_dissipation"], "erosion_energy": e["erosion_energy"],
                 "viscous_dissipation": e["viscous_dissipation"], "end": end, "steps": cd.n_steps,
                 "seconds": time.perf_counter() - t0, "history": hist,
-                "cells": {"corners": _gather(self.comm, self.corners),
-                          "alpha1": _gather(self.comm, material.alpha1.reshape(-1, npc).min(axis=1)),
-                          "removed": _gather(self.comm, ~removal.live_cells),
-                          "slit": _gather(self.comm, np.isin(np.arange(m.n_cells), self.slit))}}
-
-
-def _gather(comm, local: np.ndarray):
-    """``local`` of every rank stacked on rank 0 (None elsewhere)."""
-    parts = comm.gather(np.asarray(local), root=0)
-    return np.concatenate(parts) if comm.rank == 0 else None
+                "cells": {"corners": self.corners, "alpha1": material.alpha1.reshape(-1, npc).min(axis=1),
+                          "removed": ~removal.live_cells, "slit": np.isin(np.arange(m.n_cells), self.slit),
+                          "tear": np.isin(np.arange(m.n_cells), tear_cells)}}
 
 
 def setup_dict(setup: TearSetup) -> dict:

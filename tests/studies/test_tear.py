@@ -49,6 +49,10 @@ def test_the_work_per_length_counts_from_the_tears_start():
     length = np.concatenate((np.zeros(5), np.linspace(0.001, 0.05, 50)))
     energy = np.concatenate((np.linspace(0.0, 0.2, 5), 0.2 + 9.0 * np.linspace(0.001, 0.05, 50)))
     assert work_per_length(length, energy) == pytest.approx(9.0)
+    # a tear that stops while a clamp goes on failing: what comes after its last growth is not counted
+    length = np.concatenate((length, np.full(20, length[-1])))
+    energy = np.concatenate((energy, energy[-1] + np.linspace(0.01, 2.0, 20)))
+    assert work_per_length(length, energy) == pytest.approx(9.0)
     assert math.isnan(work_per_length(np.zeros(5), np.ones(5)))
 
 
@@ -59,6 +63,22 @@ def test_families_are_named_and_bad_ones_refused():
         parse_family("rotated")
     with pytest.raises(ValueError, match="slit"):
         TearSetup(side=0.06, slit=0.04)
+
+
+def test_the_tear_is_the_broken_cells_joined_to_the_slit():
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.studies.tear import TearTest
+
+    test = TearTest(zylon_as(), "aligned", 0.004, TearSetup())
+    x, y = test.centres[:, 0], test.centres[:, 1]
+    tip = test.setup.slit_ends[1]
+    chain = np.flatnonzero((np.abs(x) < 1e-9) & (y > tip) & (y < tip + 0.0125))    # 3 cells above the tip
+    island = np.flatnonzero((x < -0.02) & (np.abs(y) < 0.003))                        # damage at a clamp
+    broken = np.zeros(x.size, dtype=bool)
+    broken[chain] = broken[island] = True
+    assert chain.size == 3 and island.size > 0
+    assert sorted(test.tear_cells(broken)) == sorted(chain)
+    assert test.tear_length(chain) == pytest.approx(y[chain].max() - tip)
 
 
 def test_a_pull_on_the_aligned_grid_tears_straight_along_the_fill():
