@@ -7,7 +7,7 @@ docs/impact_model.md.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
@@ -49,6 +49,10 @@ class EnergyLedger:
     damage_onset_position: tuple[float, float] | None = None   # reference (x, y) of the first damaged cell
     first_removal_deflection: float | None = None   # central deflection when a cell first goes
     peak_deflection: float = 0.0                     # largest central deflection of the run
+    yarn_damage_onset_time: dict = field(default_factory=lambda: {"warp": None, "fill": None})
+    """t_n of the first step with a point of the yarn family below alpha = 1, over all ranks (s)."""
+    yarn_broken_time: dict = field(default_factory=lambda: {"warp": None, "fill": None})
+    """t_n of the first step with a point of the yarn family at alpha = 0 (s)."""
 
     def book_step(self, sums: dict[str, float], maxima: dict[str, float]) -> None:
         """Take one step's reduced values (see ``ImpactSimulation._reduce``)."""
@@ -67,3 +71,12 @@ class EnergyLedger:
             self.first_removal_deflection = -self.central_uz
         self.z_max = maxima["z_max"]
         self.n_front = int(sums["n_front"])
+
+    def book_yarn_damage(self, t: float, warp_damage: float, fill_damage: float) -> None:
+        """The first times (t_n, s) each yarn family lost strength (1 - min alpha_i > 0) and
+        broke (min alpha_i = 0) anywhere."""
+        for yarn, d in (("warp", warp_damage), ("fill", fill_damage)):
+            if d > 0.0 and self.yarn_damage_onset_time[yarn] is None:
+                self.yarn_damage_onset_time[yarn] = t
+            if d >= 1.0 and self.yarn_broken_time[yarn] is None:
+                self.yarn_broken_time[yarn] = t

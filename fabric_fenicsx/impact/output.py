@@ -17,6 +17,8 @@ a run id that ``summary.json`` repeats: a folder never mixes two runs' results.
 * ``paraview_view.py``: the ParaView view of the run (``pvpython paraview_view.py``), a copy of
   :mod:`fabric_fenicsx.impact.paraview_view`.
 * ``history.csv``: one row per history interval, written while the run goes (rank 0).
+* ``removed_cells.csv``: one row per removed cell, gathered to rank 0 and written in the step
+  that removed it (columns: :data:`~fabric_fenicsx.impact.removal_log.REMOVED_CELL_COLUMNS`).
 * ``summary.json``: the run's summary with its run id (rank 0).
 * ``velocity_history.png`` (projectile velocity and contact force against time) and
   ``damage_map.png`` (final SDV1, SDV2, SDV3 on the reference fabric, holes left blank) and
@@ -37,6 +39,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from fabric_fenicsx.impact.removal_log import REMOVED_CELL_COLUMNS, RULES
+
 __all__ = ["ImpactOutput", "XdmfSeries", "RunFrames", "read_run", "start_run", "cell_average",
            "OWNED_FILES", "NODAL_FIELDS", "CELL_FIELDS"]
 
@@ -45,8 +49,9 @@ CELL_FIELDS = ("P1", "P2", "E1", "E2", "SDV1", "SDV2", "SDV3", "mu_crit1", "mu_c
 XDMF_NAME = "impact.xdmf"
 DATA_NAME = "impact.bin"
 H5_NAME = "impact.h5"  # written by earlier versions: removed like the others
+REMOVED_NAME = "removed_cells.csv"
 VIEWER_NAME = "paraview_view.py"
-OWNED_FILES = ("run.json", "history.csv", "summary.json", XDMF_NAME, DATA_NAME, H5_NAME, VIEWER_NAME,
+OWNED_FILES = ("run.json", "history.csv", REMOVED_NAME, "summary.json", XDMF_NAME, DATA_NAME, H5_NAME, VIEWER_NAME,
                "velocity_history.png", "damage_map.png", "damage.npz", "snapshots.png", "impact.gif")
 """Every file an impact run writes into its folder; a new run removes them first."""
 
@@ -319,6 +324,14 @@ class ImpactOutput:
             self._csv_file = open(self.out_dir / "history.csv", "w", newline="")
             self._csv = csv.writer(self._csv_file)
             self._csv.writerow(history_columns)
+        self.removed_rows: list[np.ndarray] = []
+        """Every rank's removed-cell rows so far (rank 0), as written to removed_cells.csv."""
+        self._removed = None
+        if self.rank0:
+            self._removed_file = open(self.out_dir / REMOVED_NAME, "w", newline="")
+            self._removed = csv.writer(self._removed_file)
+            self._removed.writerow(REMOVED_CELL_COLUMNS)
+            self._removed_file.flush()
         self.xdmf_path = None
         self._series = None
         if self.fields:
@@ -336,6 +349,27 @@ class ImpactOutput:
             self.history_rows.append(values)
             self._csv.writerow([f"{v:.10g}" for v in values])
             self._csv_file.flush()
+
+    def removed_cells(self, local_rows: np.ndarray) -> None:
+        """Append this step's removed cells (this rank's rows of
+        :data:`~fabric_fenicsx.impact.removal_log.REMOVED_CELL_COLUMNS`) to removed_cells.csv
+        (collective: every rank calls it in a step where any rank removed cells; rank 0 writes
+        the ranks' rows in rank order)."""
+        gathered = self.comm.gather(np.asarray(local_rows, dtype=float), root=0)
+        if not self.rank0:
+            return
+        rows = np.concatenate(gathered)
+        self.removed_rows.append(rows)
+        rule, cell = REMOVED_CELL_COLUMNS.index("rule"), REMOVED_CELL_COLUMNS.index("cell")
+        for row in rows:
+            self._removed.writerow([RULES[int(v)] if j == rule else str(int(v)) if j == cell else f"{v:.10g}"
+                                    for j, v in enumerate(row)])
+        self._removed_file.flush()
+
+    def all_removed_cells(self) -> np.ndarray:
+        """Every removed-cell row written so far (rank 0; an empty table elsewhere)."""
+        return (np.concatenate(self.removed_rows) if self.removed_rows
+                else np.zeros((0, len(REMOVED_CELL_COLUMNS))))
 
     def frame(self, t: float, u_owned: np.ndarray, v_owned: np.ndarray, point_fields: dict,
               live_cells: np.ndarray) -> None:
@@ -457,3 +491,6 @@ class ImpactOutput:
         if self._csv is not None:
             self._csv_file.close()
             self._csv = None
+        if self._removed is not None:
+            self._removed_file.close()
+            self._removed = None

@@ -9,6 +9,8 @@ still attached to a clamped edge.
 A removed cell carries no force from any weak-form term (the membrane's live-cell mask) and no
 material stress (the material's :meth:`remove`), and takes part in contact only through its
 live neighbours. Pieces cut loose from every clamped edge (a plug) are tracked as free nodes.
+Every removed cell is recorded when it goes (rule, time, both yarns' integrity and strain, where
+it is and its chords along the yarns: :mod:`.removal_log`).
 """
 from __future__ import annotations
 
@@ -19,6 +21,11 @@ from dolfinx import fem
 from mpi4py import MPI
 from numba import njit
 from petsc4py import PETSc
+
+from fabric_fenicsx.fem.membrane import yarn_directions
+from fabric_fenicsx.impact.removal_log import (REMOVED_CELL_COLUMNS, cell_polygons,
+                                              chords_through_centroid, polygon_centroids,
+                                              removal_records)
 
 __all__ = ["CellRemoval"]
 
@@ -42,6 +49,10 @@ class CellRemoval:
         self.live_nodes = np.ones(self.n_nodes, dtype=bool)
         self.free_nodes = np.zeros(self.n_nodes, dtype=bool)   # in pieces cut loose (plugs)
         self._node_flags = None
+        self.records = np.zeros((0, len(REMOVED_CELL_COLUMNS)))
+        """One row per cell this rank removed (:data:`~.removal_log.REMOVED_CELL_COLUMNS`)."""
+        self._reported = 0
+        self._geometry = None
 
     def select(self) -> tuple[np.ndarray, np.ndarray]:
         """Cells to delete (all points SDV1 = 0) and to erode (a yarn strain beyond the
@@ -65,17 +76,44 @@ class CellRemoval:
         return _node_extremes(X, u, self.live_nodes, self.free_nodes, axis_xy[0], axis_xy[1],
                               radius, z_front)
 
-    def remove(self, delete: np.ndarray, erode: np.ndarray) -> None:
-        """Take the cells out of the material and of every weak-form term. Local: a rank calls
-        it only when it removes cells; :meth:`update_nodes`, which every rank calls after any
-        rank removed cells, shares the live-cell mask with the other ranks."""
+    def remove(self, delete: np.ndarray, erode: np.ndarray, time: float = float("nan")) -> None:
+        """Take the cells out of the material and of every weak-form term, recording each
+        (:attr:`records`) with the state that removed it at ``time`` (s; t_n of the step). Local:
+        a rank calls it only when it removes cells; :meth:`update_nodes`, which every rank calls
+        after any rank removed cells, shares the live-cell mask with the other ranks."""
         cells = np.concatenate((delete, erode))
+        self._record(time, delete, erode)
         self.live_cells[cells] = False
         self.deleted_cells[delete] = True
         self.eroded_cells[erode] = True
         points = (cells[:, None] * self.npc + np.arange(self.npc)).ravel()
         self.material.remove(points)
         self.m.remove_cells(cells, share=False)
+
+    def _record(self, time: float, delete: np.ndarray, erode: np.ndarray) -> None:
+        """Append the removed cells' rows (:func:`~.removal_log.removal_records`) before the
+        material forgets their state."""
+        if self._geometry is None:
+            m = self.m
+            corners = cell_polygons(m.V, m.n_cells)
+            centroids = polygon_centroids(corners)
+            chords = np.column_stack([chords_through_centroid(corners, d, centroids)
+                                      for d in yarn_directions(m.angle)])
+            start = m.msh.topology.index_map(2).local_range[0]
+            self._geometry = (centroids, chords, start + np.arange(m.n_cells))
+        centroids, chords, global_cells = self._geometry
+        cells = np.concatenate((delete, erode)).astype(np.int64)
+        rule = np.concatenate((np.zeros(len(delete)), np.ones(len(erode))))
+        state = self.material.state
+        rows = removal_records(time, rule, cells, global_cells, state.alpha1, state.alpha2,
+                               *self.material.strains, self.npc, centroids, chords)
+        self.records = np.concatenate((self.records, rows))
+
+    def new_records(self) -> np.ndarray:
+        """The rows recorded since the last call (this rank's)."""
+        rows = self.records[self._reported:]
+        self._reported = self.records.shape[0]
+        return rows
 
     def _exchange_nodes(self, marked: np.ndarray) -> np.ndarray:
         """A node marked on any rank, marked on every rank that holds it (owned or ghost;

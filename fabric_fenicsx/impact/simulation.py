@@ -301,7 +301,7 @@ class ImpactSimulation:
         W_contact) of the projectile at t_n)."""
         removed = self.removal.select()
         if removed[0].size or removed[1].size:
-            self.removal.remove(*removed)
+            self.removal.remove(*removed, time=t_n)
         check = check_due(loop.step, self.ledger.step_touch, self.scene.run.dt_check_interval)
         sums, maxima = self._reduce(loop, t_n, f_p, info, uz_c, removed, check)
         self._book(loop, t_n, sums, maxima)
@@ -353,6 +353,10 @@ class ImpactSimulation:
         state = mat.state
         damaged = bool(state.alpha1.min(initial=1.0) < 1.0 or state.alpha2.min(initial=1.0) < 1.0) \
             if self.scene.material.damage else False
+        # how far each yarn family has gone anywhere: 1 - min alpha_i (which breaks first)
+        yarn_damage = ({"warp_damage": 1.0 - float(state.alpha1.min(initial=1.0)),
+                        "fill_damage": 1.0 - float(state.alpha2.min(initial=1.0))}
+                       if self.scene.material.damage else {"warp_damage": 0.0, "fill_damage": 0.0})
         z_max, front, moved = removal.node_extremes(self.X, cd.u, self.axis_xy, self.projectile.radius,
                                                     self.state.z + self.projectile.length)
         sums = reduce_named(self.comm, {
@@ -370,7 +374,7 @@ class ImpactSimulation:
         self.clock.dt_check += time.perf_counter() - tw
         self.clock.add_tiles("dt_check", self._tile_seconds() - tiles)
         maxima = reduce_named(self.comm, {"z_max": z_max, "modulus": modulus,
-                                          "attached_displacement": moved}, op=MPI.MAX)
+                                          "attached_displacement": moved, **yarn_damage}, op=MPI.MAX)
         return sums, maxima
 
     def _book(self, loop: _Loop, t_n: float, sums: dict, maxima: dict) -> None:
@@ -378,7 +382,9 @@ class ImpactSimulation:
         ledger = self.ledger
         if sums["deleted"] or sums["eroded"]:
             self.removal.update_nodes()
+            self.output.removed_cells(self.removal.new_records())
         ledger.book_step(sums, maxima)
+        ledger.book_yarn_damage(t_n, maxima["warp_damage"], maxima["fill_damage"])
         if -sums["central_uz"] >= ledger.peak_deflection:
             self._picture("largest deflection", t_n, -sums["central_uz"])
         if sums["n_contact"] > 0 and ledger.t_touch is None:
@@ -590,6 +596,8 @@ class ImpactSimulation:
                   f"({wall:.1f} s): v0 = {v0:g} m/s, residual velocity {v_res:.3f} m/s, absorbed "
                   f"{summary['absorbed_energy']:.2f} J, energy error {b.energy_error:.2e}, removed cells "
                   f"{b.deleted} deleted + {b.eroded} eroded")
+        if b.deleted + b.eroded:
+            self._say(_removal_line(summary["removal"]))
         if self.rank0 and self.output.xdmf_path is not None and self.verbose:
             print(f"impact: XDMF for ParaView: {self.output.xdmf_path.resolve()} (one grid per frame "
                   f"with every field; `pvpython {self.output.xdmf_path.with_name('paraview_view.py').resolve()}` "
@@ -607,6 +615,22 @@ def run_impact(scene: Scene, out_dir: str | os.PathLike, comm: MPI.Comm = MPI.CO
         return sim.run()
     finally:
         sim.output.close()
+
+
+def _removal_line(removal: dict) -> str:
+    """The closing line on where removal happened: cells by the yarn families broken in them,
+    when each family first lost strength and broke, the median chords of the removed cells."""
+    states, first, broken = removal["by_family_state"], removal["damage_onset_time_s"], removal["broken_time_s"]
+    chord = removal["median_chord_m"]
+
+    def us(t):
+        return "never" if t is None else f"{t * 1e6:.1f} us"
+
+    return (f"impact: removed cells with yarns broken (alpha < {removal['broken_below_alpha']:g}): "
+            f"warp only {states['warp_only']}, fill only {states['fill_only']}, both {states['both']}, "
+            f"neither {states['neither']}; first damage warp {us(first['warp'])}, fill {us(first['fill'])}; "
+            f"first alpha = 0 warp {us(broken['warp'])}, fill {us(broken['fill'])}; median chord "
+            f"warp {chord['warp'] * 1e3:.2f} mm, fill {chord['fill'] * 1e3:.2f} mm (removed_cells.csv)")
 
 
 def _next_time(t_next: float, interval: float, t_n: float) -> float:

@@ -14,6 +14,7 @@ from mpi4py import MPI
 
 from fabric_fenicsx.impact.chatter import chatter_statistics
 from fabric_fenicsx.impact.ledger import reduce_named
+from fabric_fenicsx.impact.removal_log import removal_statistics
 from fabric_fenicsx.impact.setup import quadrature_degree
 from fabric_fenicsx.provenance import code_fingerprint
 
@@ -89,6 +90,7 @@ def build_summary(sim, end_reason: str, n_steps: int, dt: float, wall: float,
         "n_cells": sim.n_cells_global, "n_steps": n_steps, "dt": dt, "dt_initial": sim.dt_initial,
         "dt_changes": [vars(c) for c in sim.dt_changes], "n_ranks": comm.size,
         "deleted_cells": b.deleted, "eroded_cells": b.eroded,
+        "removal": _removal_section(sim),
         "free_nodes": comm.allreduce(int(np.count_nonzero(sim.removal.free_nodes)), op=MPI.SUM),
         "energies": {"projectile_kinetic_0": sim.KE0,
                      "projectile_kinetic": 0.5 * sc.projectile.mass * v_res ** 2,
@@ -133,3 +135,15 @@ def _scatter_section(sim) -> dict:
             "mean": comm.allreduce(float(mu[:, i].sum()), op=MPI.SUM) / max(count, 1),
             "max": comm.allreduce(float(mu[:, i].max(initial=0.0)), op=MPI.MAX)}
     return out
+
+
+def _removal_section(sim) -> dict:
+    """Where removal happened and why (collective): the removed cells of every rank
+    (removed_cells.csv) counted per rule and per yarn families broken in them, their median
+    chords (:func:`~fabric_fenicsx.impact.removal_log.removal_statistics`), and the first times
+    (s) each yarn family lost strength and broke anywhere."""
+    stats = removal_statistics(sim.output.all_removed_cells()) if sim.rank0 else None
+    stats = sim.comm.bcast(stats, root=0)
+    b = sim.ledger
+    return {**stats, "damage_onset_time_s": dict(b.yarn_damage_onset_time),
+            "broken_time_s": dict(b.yarn_broken_time), "file": "removed_cells.csv"}

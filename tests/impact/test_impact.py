@@ -525,13 +525,16 @@ for name, raw in scenes.items():
         centres = sim._cell_centres()[:, :2]
         local["field"] = np.column_stack([centres, sim.laws[0][::sim.npc], sim.laws[1][::sim.npc]]).tolist()
     results[name] = {"summary": {k: s[k] for k in DIGEST}, "ranks": sim.comm.gather(local)}
+    if sim.comm.rank == 0:   # the removed cells as written (every rank's, gathered to rank 0)
+        with open(f"{out}/{name}/removed_cells.csv") as f:
+            results[name]["removed_cells"] = f.read().splitlines()
 if sim.comm.rank == 0:
     with open(result, "w") as f:
         json.dump(results, f)
 """
 DIGEST = ("end_reason", "scatter", "residual_velocity", "energy_error", "n_steps", "deleted_cells", "eroded_cells",
           "free_nodes", "perforated", "end_time", "n_ranks", "absorbed_energy", "damage_onset_position",
-          "damage_onset_radius", "damaged_cells", "damage_extent_radius")
+          "damage_onset_radius", "damaged_cells", "damage_extent_radius", "removal")
 DAMAGE_SCENE = {**TINY, "material": {"angle": 90.0, "damage": True},
                 "projectile": {"diameter": 0.02, "velocity": 200.0, "mass": 0.005},
                 "boundary": {"clamped": ["left", "right", "bottom", "top"]}}
@@ -571,7 +574,8 @@ def damage_runs(tmp_path_factory, coarse_surrogate):
         # the results come in a file: stdout carries whatever the libraries print (colorama's
         # reset code at exit where a rank's stdout is a terminal, as under mpirun)
         results.append(json.loads((folder / f"np{n}.json").read_text()))
-    return {name: tuple((r[name]["summary"], r[name]["ranks"]) for r in results) for name in DAMAGE_SCENES}
+    return {name: tuple((r[name]["summary"], r[name]["ranks"], r[name]["removed_cells"]) for r in results)
+            for name in DAMAGE_SCENES}
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
@@ -579,7 +583,7 @@ def test_serial_and_two_ranks_agree_with_damage_deletion_erosion_and_a_plug(dama
     """Damage on: the same cells deleted and eroded, the same plug cut loose, the same
     perforation and residual velocity on 1 and 2 ranks (measured: equal to 2e-16), with the
     plug's nodes and the removed cells on both ranks."""
-    (s1, r1), (s2, r2) = damage_runs["centred"]
+    (s1, r1, _), (s2, r2, _) = damage_runs["centred"]
     assert s1["end_reason"] == "perforated" and s1["perforated"]
     assert s1["deleted_cells"] > 0 and s1["eroded_cells"] > 0 and s1["free_nodes"] > 0
     assert s1["energy_error"] < 0.01
@@ -611,7 +615,7 @@ def test_cells_removed_on_one_rank_only_do_not_hang_the_other(damage_runs):
     live-cell mask is collective, so it happens where every rank goes (CellRemoval.update_nodes),
     not where a rank removes cells: before, this run hung on 2 ranks (one rank in the mask's
     scatter, the other in the next reduction). It ends, as the serial run does."""
-    (s1, r1), (s2, r2) = damage_runs["off-centre"]
+    (s1, r1, _), (s2, r2, _) = damage_runs["off-centre"]
     assert s1["eroded_cells"] + s1["deleted_cells"] > 0
     assert any(r["removed_cells"] == 0 for r in r2) or r2[0]["removed_cells"] != r2[1]["removed_cells"]
     for key in ("end_reason", "n_steps", "deleted_cells", "eroded_cells", "perforated"):
@@ -624,8 +628,8 @@ def test_a_strength_scatter_is_the_same_field_on_one_and_two_ranks_and_a_seed_re
     """The Weibull field of seed 7: every cell's laws (by its centre) the same on 1 and 2 ranks,
     the run with it the same on both (damage, deletion, erosion), and the same seed run twice
     gives the same run exactly; the summary records the settings and the field's spread."""
-    (s1, r1), (s2, r2) = damage_runs["scatter"]
-    (again, _), _ = damage_runs["scatter, again"]
+    (s1, r1, _), (s2, r2, _) = damage_runs["scatter"]
+    (again, _, _), _ = damage_runs["scatter, again"]
     assert s1 == again                                    # one machine, one seed: the same run
     assert s1["scatter"]["model"] == "weibull" and s1["scatter"]["seed"] == 7
     for yarn in ("mu_crit_warp", "mu_crit_fill"):   # the mean is summed in another order on 2 ranks
@@ -643,9 +647,38 @@ def test_a_strength_scatter_is_the_same_field_on_one_and_two_ranks_and_a_seed_re
     for key in ("end_reason", "n_steps", "deleted_cells", "eroded_cells", "perforated"):
         assert s2[key] == s1[key], key
     assert s2["residual_velocity"] == pytest.approx(s1["residual_velocity"], rel=1e-9)
-    (plain, _), _ = damage_runs["centred"]
+    (plain, _, _), _ = damage_runs["centred"]
     assert plain["scatter"] == {"model": "none", "seed": 0}
     assert s1["residual_velocity"] != plain["residual_velocity"]
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
+@pytest.mark.parametrize("scene", ["centred", "off-centre"])
+def test_removed_cells_are_recorded_on_their_ranks_and_gathered_once(damage_runs, scene):
+    """removed_cells.csv on 2 ranks: every rank's removed cells gathered to rank 0, each once,
+    the same cells (by reference centroid), rules, times and states as the serial run's, and
+    the summary's counts over both ranks."""
+    (s1, r1, c1), (s2, r2, c2) = damage_runs[scene]
+
+    def table(lines):
+        rows = sorted(csv.DictReader(lines), key=lambda r: (round(float(r["x_m"]), 9), round(float(r["y_m"]), 9)))
+        key = [(round(float(r["x_m"]), 9), round(float(r["y_m"]), 9), r["rule"]) for r in rows]
+        values = np.array([[float(r[c]) for c in ("time_s", "alpha1_warp", "alpha2_fill", "E1_max_warp",
+                                                   "chord2_fill_m")] for r in rows])
+        return rows, key, values
+
+    (rows1, key1, v1), (rows2, key2, v2) = table(c1), table(c2)
+    assert len(rows2) == sum(r["removed_cells"] for r in r2) == s2["deleted_cells"] + s2["eroded_cells"] > 0
+    assert len(set(key2)) == len(key2)                              # each cell once
+    assert key2 == key1
+    assert v2 == pytest.approx(v1, rel=1e-8, abs=1e-12)
+    assert len({int(r["cell"]) for r in rows2}) == len(rows2)      # global numbers, unique
+    for s in (s1, s2):
+        assert s["removal"]["by_rule"] == {"deletion": s["deleted_cells"], "erosion": s["eroded_cells"]}
+    assert s2["removal"]["by_family_state"] == s1["removal"]["by_family_state"]
+    for yarn in ("warp", "fill"):   # times summed from the same steps in another order
+        assert s2["removal"]["broken_time_s"][yarn] == pytest.approx(s1["removal"]["broken_time_s"][yarn], rel=1e-12)
+        assert s2["removal"]["damage_onset_time_s"][yarn] == pytest.approx(s1["removal"]["damage_onset_time_s"][yarn], rel=1e-12)
 
 
 def test_the_damping_coefficient_is_a_property_of_the_fabric_not_of_the_mesh(tmp_path):

@@ -172,7 +172,8 @@ def test_a_new_run_removes_the_last_runs_output(tmp_path):
     (out / "impact.h5").write_text("an older version's data")
     second = run_impact(tiny(["run.t_end=1e-5", "projectile.velocity=50", "output.xdmf_interval=0",
                               "output.png=false"]), out, verbose=False)
-    assert {p.name for p in out.iterdir()} == {"run.json", "history.csv", "summary.json", "notes.txt"}
+    assert {p.name for p in out.iterdir()} == {"run.json", "history.csv", "removed_cells.csv", "summary.json",
+                                             "notes.txt"}
     marker = json.loads((out / "run.json").read_text())
     summary = json.loads((out / "summary.json").read_text())
     assert second["run_id"] == marker["run_id"] == summary["run_id"] != first["run_id"]
