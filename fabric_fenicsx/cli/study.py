@@ -77,6 +77,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "file (default aligned,structured30,structured45,graded)")
     parser.add_argument("--notch", default="edge", help="tear: a slit from the bottom edge (edge) or centred (centre)")
     parser.add_argument("--mesh-file", default=None, help="tear: the gmsh .msh file of the family 'file'")
+    parser.add_argument("--grips", default="clamped",
+                        help="tear: the pulled edges clamped (every component held) or rollers (free along y)")
+    parser.add_argument("--failure", default="thesis",
+                        help="tear: the failure rule, thesis or yarn_average (a candidate: damage driven by the "
+                             "strain averaged along each yarn over --failure-length)")
+    parser.add_argument("--failure-length", type=float, default=0.0, help="tear: the yarn average's length (m)")
     parser.add_argument("--cell-rule", default="weakest",
                         help="strip: how a cell reads the segments it covers, weakest, patch or yarn (default weakest)")
     parser.add_argument("--crack-band", action="store_true",

@@ -5,7 +5,8 @@ A 60 mm panel with a 10 mm slit across the warp (``--notch edge``, from the bott
 (``--families``, default aligned,structured30,structured45,graded; ``file`` with
 ``--mesh-file``) and cell size (``--sizes`` in m, default 0.002,0.001): without scatter, and
 with ``--members N`` also N - 1 seeds of ``--scatter``. Writes OUT/tear.csv (a row per pull as
-it ends; a study run again skips the pulls it holds), OUT/tear-<family>-<size>.npz (each
+it ends; a study run again with the same setup skips the pulls it holds, one with another setup
+is refused: OUT/tear-setup.json), OUT/tear-<family>-<size>.npz (each
 mesh's final cells, for the picture), OUT/tear.json and OUT/tear.png, and prints the families
 compared at each size.
 """
@@ -64,11 +65,15 @@ def _done(path: Path) -> list[dict]:
 def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.impact.lock import FolderLock
     from fabric_fenicsx.impact.scene import InputError, check_output_dir
+    from fabric_fenicsx.studies import tear
 
     plan, problems = _plan(args)
-    notch = getattr(args, "notch", "edge")
-    if notch not in ("edge", "centre"):
-        problems.append(f"--notch must be edge or centre, got {notch!r}")
+    try:
+        setup = tear.TearSetup(notch=getattr(args, "notch", "edge"), grips=getattr(args, "grips", "clamped"),
+                               failure=getattr(args, "failure", "thesis"),
+                               failure_length=getattr(args, "failure_length", 0.0))
+    except ValueError as err:
+        problems.append(str(err))
     if args.members > 1 and args.scatter not in ("weibull", "fibrils"):
         problems.append(f"--scatter must be weibull or fibrils, got {args.scatter!r}")
     if problems:
@@ -78,13 +83,13 @@ def run(args: argparse.Namespace) -> int:
     try:
         check_output_dir(out)
         with FolderLock(out, "study tear"):
-            return _run(args, plan, notch, out)
+            return _run(args, plan, setup, out)
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
         return 2
 
 
-def _run(args, plan, notch: str, out: Path) -> int:
+def _run(args, plan, setup, out: Path) -> int:
     import numpy as np
 
     from fabric_fenicsx.material.fabric import zylon_as
@@ -92,8 +97,15 @@ def _run(args, plan, notch: str, out: Path) -> int:
     from fabric_fenicsx.studies import tear, tear_report
     from fabric_fenicsx.surrogate.table import Surrogate
 
-    setup = tear.TearSetup(notch=notch)
+    from fabric_fenicsx.impact.scene import InputError
+
+    notch = setup.notch
     table = out / "tear.csv"
+    recorded = out / "tear-setup.json"
+    wanted = json.dumps(tear.setup_dict(setup), sort_keys=True)
+    if table.exists() and recorded.exists() and recorded.read_text() != wanted:
+        raise InputError(f"{out} holds pulls of another setup ({recorded.read_text()}); give another --out")
+    recorded.write_text(wanted)
     rows = [r for r in _done(table) if r["notch"] == notch]
     have = {(r["family"], r["h"], int(r["seed"])) for r in rows}
     if not table.exists():

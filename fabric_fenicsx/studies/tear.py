@@ -54,10 +54,13 @@ class TearSetup:
     hourglass: float = 0.05
     dt_safety: float = 0.8
     erosion_strain: float = 1.0  # material.erosion_strain
+    grips: str = "clamped"       # "clamped" (every component held) | "rollers" (the edges free along y)
     failure: str = "thesis"      # "thesis" | "yarn_average" (fabric_fenicsx.fem.yarn_average)
     failure_length: float = 0.0  # m: the yarn average's length (yarn_average only)
 
     def __post_init__(self) -> None:
+        if self.grips not in ("clamped", "rollers"):
+            raise ValueError(f"grips = {self.grips!r}: must be 'clamped' or 'rollers'")
         if self.failure not in ("thesis", "yarn_average"):
             raise ValueError(f"failure = {self.failure!r}: must be 'thesis' or 'yarn_average'")
         if self.failure == "yarn_average" and not self.failure_length > 0:
@@ -210,6 +213,12 @@ class TearTest:
         n = m.n_owned_dofs
         self.fixed_x = self.fixed[(self.fixed % 3 == 0) & (self.fixed < n)]
         self.pulled_x = self.pulled[(self.pulled % 3 == 0) & (self.pulled < n)]
+        if setup.grips == "rollers":    # the edges slide along y: only x (and z) held, y at one corner
+            held = np.concatenate([self.fixed, self.pulled])
+            corner = self.fixed[self.fixed % 3 == 1][:1]
+            self.held = np.concatenate([held[held % 3 != 1], corner])
+        else:
+            self.held = np.concatenate([self.fixed, self.pulled])
         X = m.V.tabulate_dof_coordinates()[:, :2]
         self.corners = X[cell_corners(m.V, m.n_cells)]
         self.centres = self.corners.mean(axis=1)
@@ -283,7 +292,7 @@ class TearTest:
         removal.deleted_cells[:] = False          # the slit is not a failure
         m.share_live_cells()
         cd = CentralDifference(m, material, self.fabric.areal_density,
-                               np.concatenate([self.fixed, self.pulled]), cell_size=self.cell_size,
+                               self.held, cell_size=self.cell_size,
                                safety=s.dt_safety)
         cd.v[self.pulled_x] = s.speed
         dt = cd.stable_dt()

@@ -83,7 +83,8 @@ def plot_paths(cells: dict, path, title: str = "") -> None:
             colours = plt.cm.viridis(np.clip(c["alpha1"], 0.0, 1.0))
             colours[c["removed"]] = (1.0, 1.0, 1.0, 1.0)
             colours[c["slit"]] = (0.0, 0.0, 0.0, 1.0)
-            ax.add_collection(PolyCollection(c["corners"] * 1e3, facecolors=colours, edgecolors=(0.6, 0.6, 0.6),
+            edges = (0.6, 0.6, 0.6) if len(colours) < 2500 else "face"   # fine meshes: cells alone
+            ax.add_collection(PolyCollection(c["corners"] * 1e3, facecolors=colours, edgecolors=edges,
                                              linewidths=0.1))
             ax.autoscale_view()
             ax.set_aspect("equal")
@@ -91,5 +92,5 @@ def plot_paths(cells: dict, path, title: str = "") -> None:
     sm = plt.cm.ScalarMappable(cmap="viridis", norm=plt.Normalize(0, 1))
     fig.colorbar(sm, ax=axes, shrink=0.6, label="warp alpha (white: removed; black: the slit)")
     fig.suptitle(title or "tear paths (warp along x, pulled along x)", fontsize=10)
-    fig.savefig(path, dpi=130)
+    fig.savefig(path, dpi=90)
     plt.close(fig)

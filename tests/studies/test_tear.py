@@ -116,3 +116,9 @@ def test_the_command_writes_its_report_and_refuses_bad_input(tmp_path):
     again = subprocess.run([*cmd[:-1], "--families", "aligned,structured45", "--sizes", "0.004", "--out", str(out)],
                            capture_output=True, text=True, timeout=900)
     assert again.returncode == 0 and again.stdout.count("reused") == 2
+    other = subprocess.run([*cmd, "--families", "aligned", "--sizes", "0.004", "--grips", "rollers", "--out", str(out)],
+                           capture_output=True, text=True, timeout=900)
+    assert other.returncode == 2 and "another setup" in other.stderr
+    bad_rule = subprocess.run([*cmd, "--failure", "yarn_average", "--out", str(tmp_path / "rule")],
+                              capture_output=True, text=True, timeout=300)
+    assert bad_rule.returncode == 2 and "failure_length" in bad_rule.stderr
