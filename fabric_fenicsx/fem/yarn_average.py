@@ -27,17 +27,18 @@ import numpy as np
 __all__ = ["yarn_neighbourhoods", "YarnAverage"]
 
 
-def yarn_neighbourhoods(centres: np.ndarray, areas: np.ndarray, directions, length: float):
+def yarn_neighbourhoods(centres: np.ndarray, areas: np.ndarray, directions, length: float, width: float = 0.0):
     """The averaging operators (scipy.sparse CSR, n x n, unnormalised weights = areas) of the
     cells with reference centres ``centres`` (n, 2) and areas ``areas`` (n,), one per yarn
     direction of ``directions`` (unit 2-vectors): row c holds the cells k with
-    |(x_k - x_c) . d| <= length / 2 and |(x_k - x_c) . d_perp| <= sqrt(area_c) / 2."""
+    |(x_k - x_c) . d| <= length / 2 and |(x_k - x_c) . d_perp| <= max(sqrt(area_c), width) / 2
+    (``width`` 0: one cell across the yarn; ``width = length``: a square window)."""
     from scipy.sparse import csr_matrix
     from scipy.spatial import cKDTree
 
     centres = np.asarray(centres, float)
     areas = np.asarray(areas, float)
-    width = np.sqrt(areas)
+    width = np.maximum(np.sqrt(areas), width)
     tree = cKDTree(centres)
     reach = np.hypot(0.5 * length, 0.5 * width)
     rows = tree.query_ball_point(centres, reach)
@@ -60,16 +61,16 @@ class YarnAverage:
 
     centres, areas: the owned cells' reference centres (n, 2) and areas (n,); directions: the
     warp and fill directions (unit 2-vectors, the material angle); length: the averaging length
-    along the yarns (m)."""
+    along the yarns (m); width: across them (m; 0: one cell)."""
 
-    def __init__(self, centres, areas, directions, length: float, comm=None):
+    def __init__(self, centres, areas, directions, length: float, comm=None, width: float = 0.0):
         if comm is not None and comm.size > 1:
             raise ValueError("the yarn-average failure rule runs on one rank only (its neighbourhoods do not "
                              "cross partitions); run without mpirun")
         if not length > 0:
             raise ValueError(f"yarn-average length = {length!r}: must be > 0 m")
         self.length = float(length)
-        self.W = yarn_neighbourhoods(centres, areas, directions, self.length)
+        self.W = yarn_neighbourhoods(centres, areas, directions, self.length, width)
 
     def __call__(self, E1: np.ndarray, E2: np.ndarray, live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(Ebar1, Ebar2) at every cell from the yarn strains (E1, E2) of every cell, averaged

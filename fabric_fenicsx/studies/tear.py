@@ -57,6 +57,7 @@ class TearSetup:
     grips: str = "clamped"       # "clamped" (every component held) | "rollers" (the edges free along y)
     failure: str = "thesis"      # "thesis" | "yarn_average" (fabric_fenicsx.fem.yarn_average)
     failure_length: float = 0.0  # m: the yarn average's length (yarn_average only)
+    failure_width: float = 0.0   # m: the yarn average's width across the yarn (0: one cell)
 
     def __post_init__(self) -> None:
         if self.grips not in ("clamped", "rollers"):
@@ -241,7 +242,7 @@ class TearTest:
             x, y = self.corners[..., 0], self.corners[..., 1]
             areas = 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
             self._average = YarnAverage(self.centres, areas, (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
-                                        self.setup.failure_length, self.comm)
+                                        self.setup.failure_length, self.comm, self.setup.failure_width)
         return self._average
 
     def laws(self, scatter):
