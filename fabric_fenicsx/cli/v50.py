@@ -54,15 +54,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def estimate_problems(args) -> list[str]:
     """What is wrong with the arguments of :func:`add_estimate_arguments` (and --scheduler)."""
+    from fabric_fenicsx.cli._checks import parse_bracket, scene_problem
     from fabric_fenicsx.studies.executor import scheduler_problem
 
-    problems = []
+    problems = [p for p in (scene_problem(args.scene),) if p]
     try:
-        lo, hi = (float(x) for x in args.bracket.split(","))
-        if not 0 < lo < hi:
-            raise ValueError
-    except ValueError:
-        problems.append(f"--bracket must be LO,HI with 0 < LO < HI (m/s), got {args.bracket!r}")
+        parse_bracket(args.bracket)
+    except ValueError as err:
+        problems.append(str(err))
     if not args.ci > 0:
         problems.append(f"--ci must be a width > 0 m/s, got {args.ci}")
     if args.max_runs < 2:
@@ -85,7 +84,8 @@ def _problems(args) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.cli.impact import _size
-    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+    from fabric_fenicsx.cli._checks import out_problem
+    from fabric_fenicsx.impact.scene import InputError, load_scene
 
     if _size() > 1:
         print(f"{PROG}: the runs are processes of their own; run it without mpirun", file=sys.stderr)
@@ -96,10 +96,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         scene = load_scene(args.scene, args.overrides)
-        out = Path(args.out or Path("out") / f"v50-{scene.name}")
-        check_output_dir(str(out))
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    out = Path(args.out if args.out is not None else Path("out") / f"v50-{scene.name}")
+    problem = out_problem(args.out if args.out is not None else out)
+    if problem:
+        print(f"{PROG}: {problem}", file=sys.stderr)
         return 2
     from fabric_fenicsx.cli._guarded import guarded
 

@@ -1,0 +1,136 @@
+"""Reliability of the statistics commands (v50, ladder, study v50 / chapter4 / strip), as
+docs/reliability.md states it for ``impact``: bad input stops before any work with one line
+(exit 2, no traceback, no folder left); a rung that never perforates is reported, not a crash;
+the files of an estimate describe the same runs, also after a stopped rerun. The runs are
+stand-ins: a process that writes the summary a rule gives."""
+import json
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+from fabric_fenicsx.studies import runpool
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = str(ROOT / "demos" / "scenes" / "y90.toml")
+
+
+def _summary_process(folder: Path, summary: dict) -> list[str]:
+    return [sys.executable, "-c", f"open({str(folder / 'summary.json')!r}, 'w').write({json.dumps(summary)!r})"]
+
+
+def _never_through(run, folder):
+    """A scene no run perforates: the V50 runs alternate held and undecided (still moving
+    forward at the time limit), the members are held."""
+    i = int(folder.name.split("_")[1]) if folder.name.startswith("run_") else 0
+    undecided = "stop_when_held" in " ".join(run.overrides) and i % 2 == 1
+    summary = {"perforated": False, "end_reason": "time_limit" if undecided else "held",
+               "residual_velocity": 2.0 if undecided else -0.5, "absorbed_energy": 1.0, "wall_time_s": 1.0}
+    return _summary_process(folder, summary)
+
+
+def _stored(run, folder):
+    path = folder / "summary.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def _refused(capsys, argv, *needles, folder=None):
+    """``argv`` ends with exit 2 and one line on stderr naming ``needles``, before any run and
+    without leaving ``folder``."""
+    from fabric_fenicsx.cli import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and all(n in lines[0] for n in needles), err
+    if folder is not None:
+        assert not Path(folder).exists(), f"{folder} was left"
+    return lines[0]
+
+
+@pytest.fixture
+def no_runs(monkeypatch):
+    """A run started by a refused command fails the test."""
+    def started(run, folder):
+        raise AssertionError(f"run {run.key} started")
+    monkeypatch.setattr(runpool, "_command", started)
+
+
+# ----------------------------------------------------------------------------- ladder
+def test_a_ladder_whose_rung_never_perforates_reports_no_limit_in_its_range(tmp_path, monkeypatch, capsys):
+    from fabric_fenicsx.cli import main
+
+    monkeypatch.setattr(runpool, "_command", _never_through)
+    monkeypatch.setattr(runpool, "_stored", _stored)
+    out = tmp_path / "L"
+    argv = ["ladder", SCENE, "--sizes", "0.008", "--families", "graded", "--members", "2", "--max-runs", "3",
+            "--jobs", "1", "--quiet", "--out", str(out)]
+    for _ in range(2):                                   # and again, on its stored runs
+        assert main(argv) == 0
+        rep = json.loads((out / "ladder.json").read_text())
+        row = rep["rows"][0]
+        assert row["v50"] is None and row["v50_kind"] == "none in range" and row["v50_hi"] is None
+        assert "no limit in its range: every counted run held" in (out / "ladder.md").read_text()
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_bracket_reached_at_max_runs_is_not_called_sharp():
+    from fabric_fenicsx.cli.ladder import _est
+    from fabric_fenicsx.studies import ladder
+
+    rows = [{"velocity": v, "outcome": "perforated" if v > 50 else "held", "residual_velocity": 1.0,
+             "wall_time_s": 1.0} for v in (20.0, 40.0, 60.0)]
+    members = [{"residual_velocity": 1.0, "wall_time_s": 1.0}] * 2
+    capped = ladder.measure(ladder.Rung("graded", 0.004), rows, "3 runs (--max-runs) reached", members)
+    assert capped["v50_kind"] == "bracket" and "sharp" not in _est(capped, "v50").split(":")[0].replace("not narrowed "
+                                                                                                           "to a sharp", "")
+    assert _est(capped, "v50").startswith("bracket, not narrowed")
+    sharp = ladder.measure(ladder.Rung("graded", 0.004), rows, "a sharp limit: no overlap", members)
+    assert _est(sharp, "v50").startswith("sharp: held at 40.00")
+
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--velocity", "nan"], "--velocity must be a finite number > 0"),
+    (["--velocity", "-3"], "--velocity must be a finite number > 0"),
+    (["--velocity", "0"], "--velocity must be a finite number > 0"),
+    (["--variant-size", "0"], "--variant-size must be a finite number > 0"),
+    (["--families", "graded,graded"], "--families names graded more than once"),
+    (["--variant", "run.damping=0.05", "--variant", "run.damping=0.05", "--variant-size", "0.004"],
+     "--variant names run.damping=0.05 more than once"),
+    (["--sizes", "0.004,0.0040000001"], "rungs would share a folder (graded-4mm)"),
+    (["--bracket", "20,inf"], "--bracket must be LO,HI"),
+    (["--bracket", "0.5,10"], "the design never goes below 1 m/s"),
+    (["--out", ""], "--out is empty"),
+])
+def test_bad_ladder_arguments_stop_before_any_run_and_leave_no_folder(tmp_path, capsys, no_runs, extra, needle):
+    out = tmp_path / "deep" / "L"
+    argv = ["ladder", SCENE, "--sizes", "0.004", "--families", "graded", "--out", str(out), *extra]
+    _refused(capsys, argv, needle, folder=tmp_path / "deep")
+
+
+# ----------------------------------------------------------------------------- v50
+@pytest.mark.parametrize("extra, needle", [
+    (["--bracket", "20,inf"], "--bracket must be LO,HI"),
+    (["--bracket", "0.5,10"], "the design never goes below 1 m/s"),
+    (["--bracket", "nan,10"], "--bracket must be LO,HI"),
+    (["--out", ""], "--out is empty"),
+    (["--jobs", "0"], "--jobs must be at least 1"),
+])
+def test_bad_v50_arguments_stop_before_any_run_and_leave_no_folder(tmp_path, capsys, no_runs, extra, needle):
+    out = tmp_path / "deep" / "V"
+    _refused(capsys, ["v50", SCENE, "--out", str(out), *extra], needle, folder=tmp_path / "deep")
+
+
+def test_an_empty_scene_name_is_named_as_such(tmp_path, capsys, no_runs):
+    _refused(capsys, ["v50", "", "--out", str(tmp_path / "V")], "SCENE is empty", folder=tmp_path / "V")
+    _refused(capsys, ["ladder", "", "--out", str(tmp_path / "L")], "SCENE is empty", folder=tmp_path / "L")
+
+
+@pytest.mark.parametrize("where", ["file", "proc"])
+def test_an_unusable_out_is_refused_in_one_line(tmp_path, capsys, no_runs, where):
+    target = tmp_path / "a-file" if where == "file" else Path("/proc/x")
+    if where == "file":
+        target.write_text("not a folder\n")
+    for command in ("v50", "ladder"):
+        _refused(capsys, [command, SCENE, "--out", str(target)], str(target))
