@@ -101,3 +101,20 @@ def memory_jobs(jobs: int, scene, say, what: str = "runs") -> int:
 def cpu_count() -> int:
     """The cores this process may use."""
     return len(os.sched_getaffinity(0))
+
+
+def doc_problem(doc) -> str | None:
+    """What is wrong with the report file ``doc`` (``study chapter4 --doc``): empty, a folder, or
+    in a folder that cannot be made or written (its pictures go to a folder beside it)."""
+    if not str(doc).strip():
+        return "--doc is empty: give the report's file (default docs/validation.md)"
+    path = Path(doc)
+    if path.is_dir():
+        return f"--doc {str(path)!r} is a folder; give the report's file (e.g. {path / 'validation.md'})"
+    if path.exists() and not os.access(path, os.W_OK):
+        return f"--doc {str(path)!r} cannot be written; give a writable file"
+    pictures = path.parent / path.stem
+    if pictures.exists() and not pictures.is_dir():
+        return f"--doc {str(path)!r}: its pictures' folder {str(pictures)!r} is a file; give another --doc"
+    problem = out_problem(path.parent if str(path.parent) else ".")
+    return None if problem is None else problem.replace("output folder (--out)", "--doc's folder")

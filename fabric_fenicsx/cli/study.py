@@ -84,12 +84,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _check(args) -> str | None:
-    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+    from fabric_fenicsx.cli._checks import doc_problem, out_problem
+    from fabric_fenicsx.impact.scene import InputError, load_scene
     from fabric_fenicsx.studies import chapter4
     from fabric_fenicsx.studies.executor import scheduler_problem
 
     if args.name not in chapter4.STUDIES:
-        return f"unknown study {args.name!r}; the studies are {', '.join(chapter4.STUDIES)}"
+        return f"unknown study {args.name!r}; the studies are {', '.join(chapter4.STUDIES)}, strip"
     if args.jobs is not None and args.jobs < 1:
         return f"--jobs must be at least 1, got {args.jobs}"
     if args.members < 1:
@@ -103,10 +104,9 @@ def _check(args) -> str | None:
     try:
         for scene in chapter4.SCENES.values():
             load_scene(str(chapter4.SCENE_DIR / scene), [*RUN_OUTPUT, *args.overrides])
-        check_output_dir(args.out)
     except InputError as err:
         return str(err)
-    return None
+    return out_problem(args.out) or (doc_problem(args.doc) if args.name == "chapter4" else None)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     if _size() > 1:
         print(f"{PROG}: the runs are processes of their own (--jobs); run it without mpirun", file=sys.stderr)
         return 2
-    args.out = args.out or str(Path("out") / f"study-{args.name}")
+    args.out = str(Path("out") / f"study-{args.name}") if args.out is None else args.out
     if args.name == "strip":
         from fabric_fenicsx.cli import strip
 

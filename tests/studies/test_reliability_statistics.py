@@ -134,3 +134,47 @@ def test_an_unusable_out_is_refused_in_one_line(tmp_path, capsys, no_runs, where
         target.write_text("not a folder\n")
     for command in ("v50", "ladder"):
         _refused(capsys, [command, SCENE, "--out", str(target)], str(target))
+
+
+# ----------------------------------------------------------------------------- study
+@pytest.mark.parametrize("extra, needle", [
+    (["--jobs", "0"], "--jobs must be at least 1"),
+    (["--jobs=-1"], "--jobs must be at least 1"),
+    (["--scheduler", "local:2"], "--scheduler is not available for strip"),
+    (["--sizes", "0.002,0.002"], "strip-aligned-2mm.csv more than once"),
+    (["--sizes", "0.002,0.0020000001"], "strip-aligned-2mm.csv more than once"),
+    (["--out", ""], "--out is empty"),
+])
+def test_bad_strip_arguments_stop_before_any_pull_and_leave_no_folder(tmp_path, capsys, extra, needle):
+    out = tmp_path / "deep" / "S"
+    argv = ["study", "strip", "--families", "aligned", "--sizes", "0.005", "--seeds", "3", "--out", str(out), *extra]
+    _refused(capsys, argv, needle, folder=tmp_path / "deep")
+
+
+@pytest.mark.parametrize("where", ["file", "proc"])
+def test_strip_refuses_an_unusable_out_in_one_line(tmp_path, capsys, where):
+    target = tmp_path / "a-file" if where == "file" else Path("/proc/x")
+    if where == "file":
+        target.write_text("not a folder\n")
+    _refused(capsys, ["study", "strip", "--seeds", "3", "--out", str(target)], str(target))
+
+
+def test_a_strip_study_into_a_folder_in_use_stops_at_once(tmp_path, capsys):
+    from fabric_fenicsx.impact.lock import FolderLock
+
+    out = tmp_path / "S"
+    with FolderLock(out, "study", run_id="strip"):
+        _refused(capsys, ["study", "strip", "--families", "aligned", "--sizes", "0.005", "--seeds", "3",
+                          "--out", str(out)], "is in use by study strip")
+    assert [p.name for p in out.iterdir()] == []          # no table begun
+
+
+def test_study_names_every_study_and_checks_the_report_file_first(tmp_path, capsys, no_runs):
+    assert "strip" in _refused(capsys, ["study", "nosuch", "--out", str(tmp_path / "n")], "unknown study",
+                               folder=tmp_path / "n")
+    (tmp_path / "docs").mkdir()
+    _refused(capsys, ["study", "chapter4", "--doc", str(tmp_path / "docs"), "--out", str(tmp_path / "c")],
+             "is a folder", folder=tmp_path / "c")
+    _refused(capsys, ["study", "chapter4", "--doc", "/proc/x/validation.md", "--out", str(tmp_path / "c")],
+             "--doc's folder", folder=tmp_path / "c")
+    _refused(capsys, ["study", "v50", "--out", ""], "--out is empty")
