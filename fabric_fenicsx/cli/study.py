@@ -240,17 +240,19 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
     from fabric_fenicsx.impact.scene import load_scene
     from fabric_fenicsx.studies import chapter4, v50
     from fabric_fenicsx.studies.neyer import NeyerDesign
-    from fabric_fenicsx.studies.runpool import write_atomic
 
     slots = threading.BoundedSemaphore(jobs)
     stop = threading.Event()        # one scene's pool stopped (a full disk): the others stop too
     limits, crashed = {}, {}
+    ended = {scene: threading.Event() for scene in chapter4.SCENES}
 
     def guarded(scene):
         try:
             limits[scene] = estimate(scene)
         except BaseException as err:        # a bug or a stopped pool, not a failed run: raised again below
             crashed[scene] = err
+        finally:
+            ended[scene].set()
 
     def estimate(scene):
         path = str(chapter4.SCENE_DIR / chapter4.SCENES[scene])
@@ -260,8 +262,10 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
         out.mkdir(parents=True, exist_ok=True)
         table = out / "v50.csv"
         v50.write_table(table, [])
+        seen = {}                   # every run that ended, by index
 
         def on_run(row):
+            seen[row["run"]] = row
             with open(table, "a", newline="") as f:
                 csv.writer(f, lineterminator="\n").writerow(v50.table_cells(row))
             if not quiet:
@@ -270,18 +274,23 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
 
         _say(f"{PROG} v50: {scene}, Neyer's design from {start[0]:g}-{start[1]:g} m/s until V50's 95 % interval "
              f"is within {ci:g} m/s or {max_runs} runs, into {out}")
-        result = v50.estimate(path, overrides, out, NeyerDesign(*start), ci=ci, max_runs=max_runs, jobs=jobs,
-                              first_seed=first_seed, executor=executor, on_run=on_run,
-                              on_batch=lambda rows, fit: v50.write_table(table, rows),
-                              on_start=None if counter is None else counter.expect,
-                              on_done=None if counter is None else (lambda run, s, reused: counter.finished(s, reused)),
-                              slots=slots, stop=stop)
+        extra = dict(start=list(start), first_seed=first_seed, ci_target=ci, max_runs=max_runs)
+
+        def write(rows, stop):
+            return v50.write_report(out, rows, stop, scene, extra, with_rows=True, reference=v50.thesis_points(scene))
+        try:
+            result = v50.estimate(path, overrides, out, NeyerDesign(*start), ci=ci, max_runs=max_runs, jobs=jobs,
+                                  first_seed=first_seed, executor=executor,
+                                  on_run=on_run,
+                                  on_batch=lambda rows, fit: v50.write_table(table, rows),
+                                  on_start=None if counter is None else counter.expect,
+                                  on_done=None if counter is None else (lambda run, s, reused: counter.finished(s, reused)),
+                                  slots=slots, stop=stop)
+        except BaseException as err:    # the three files describe the runs that ended, then the error goes on
+            write([seen[i] for i in sorted(seen)], v50.stopped_early(err, len(seen)))
+            raise
         rows = result["rows"]
-        v50.write_table(table, rows)
-        rep = v50.report(rows, result["stop"], scene)
-        rep.update(start=list(start), first_seed=first_seed, ci_target=ci, max_runs=max_runs)
-        write_atomic(out / "v50.json", json.dumps({**rep, "rows": rows}, indent=1, default=str))
-        v50.plot(rep, rows, out / "v50.png", title=f"{scene}: {len(rows)} runs", reference=v50.thesis_points(scene))
+        rep = write(rows, result["stop"])
         p = rep["probit"]
         _say(f"{PROG} v50: {scene}: " + (f"V50 {p['v50']:.2f} m/s {v50.format_interval(p['v50_ci'])}"
                                          if p else "no probit fit") + f" after {len(rows)} runs ({result['stop']})")
@@ -291,14 +300,33 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
                for scene in chapter4.SCENES]
     for t in threads:
         t.start()
-    for t in threads:
-        t.join()
+    _join(threads, list(ended.values()), stop)
     stopped = [err for err in crashed.values() if isinstance(err, PoolStopped)]
     if stopped:         # the first cause, not the pools that stopped with it
         raise next((e for e in stopped if not str(e).startswith("stopped with")), stopped[0])
     for scene, err in crashed.items():
         raise RuntimeError(f"{PROG} v50: the estimate of {scene} stopped") from err
     return {scene: limits[scene] for scene in chapter4.SCENES}
+
+
+def _join(threads, ended, stop, grace: float = 30.0) -> None:
+    """Wait for the ballistic limits' threads, each of which sets its event of ``ended`` as it
+    ends. An interruption (Ctrl-C, SIGTERM) reaches only this thread: it sets ``stop``, so that
+    each thread's pool ends its runs (SIGTERM, then SIGKILL) and writes what it has, waits up to
+    ``grace`` s for them, then goes on. The events are waited for, not the threads: a
+    ``Thread.join`` that an exception interrupts leaves the thread taken for ended."""
+    try:
+        for event in ended:
+            while not event.wait(0.5):
+                pass
+    except BaseException:
+        stop.set()
+        deadline = time.monotonic() + grace
+        for event in ended:
+            event.wait(max(0.0, deadline - time.monotonic()))
+        raise
+    for t in threads:
+        t.join()
 
 
 def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall: float, out: Path,

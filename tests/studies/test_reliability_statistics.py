@@ -178,3 +178,148 @@ def test_study_names_every_study_and_checks_the_report_file_first(tmp_path, caps
     _refused(capsys, ["study", "chapter4", "--doc", "/proc/x/validation.md", "--out", str(tmp_path / "c")],
              "--doc's folder", folder=tmp_path / "c")
     _refused(capsys, ["study", "v50", "--out", ""], "--out is empty")
+
+
+# ----------------------------------------------------------------------------- v50's files
+def _probit_runs(run, folder):
+    """Runs on the probit curve V50 = 40 m/s, sigma = 3 m/s (a number from the run's index)."""
+    v = float(next(o for o in run.overrides if o.startswith("projectile.velocity=")).split("=")[1])
+    u = (int(folder.name.split("_")[1]) * 0.6180339887498949) % 1.0
+    through = u < 0.5 * (1.0 + math.erf((v - 40.0) / (3.0 * math.sqrt(2.0))))
+    return _summary_process(folder, {"perforated": through, "end_reason": "perforated" if through else "held",
+                                     "residual_velocity": 5.0 if through else -1.0, "absorbed_energy": 1.0,
+                                     "wall_time_s": 1.0})
+
+
+def test_a_stopped_rerun_leaves_csv_json_and_png_describing_the_same_runs(tmp_path, monkeypatch, capsys):
+    from fabric_fenicsx.cli import main
+    from fabric_fenicsx.studies import v50
+
+    monkeypatch.setattr(runpool, "_command", _probit_runs)
+    monkeypatch.setattr(runpool, "_stored", _stored)
+    plotted = []
+    real_plot = v50.plot
+    monkeypatch.setattr(v50, "plot", lambda rep, rows, *a, **k: (plotted.append(len(rows)), real_plot(rep, rows, *a, **k)))
+    out = tmp_path / "V"
+    argv = ["v50", SCENE, "--jobs", "2", "--ci", "0.1", "--out", str(out)]
+    assert main([*argv, "--max-runs", "6", "--quiet"]) == 0
+    assert json.loads((out / "v50.json").read_text())["runs"] == 6 and plotted[-1] == 6
+
+    real_run_all = runpool.run_all
+
+    def stopped(*a, **k):                          # the rerun stops after its first batch (reused runs)
+        real_run_all(*a, **k)
+        raise KeyboardInterrupt
+    monkeypatch.setattr(runpool, "run_all", stopped)
+    assert main([*argv, "--max-runs", "16"]) == 130
+    captured = capsys.readouterr()
+    csv_rows = len((out / "v50.csv").read_text().splitlines()) - 1
+    rep = json.loads((out / "v50.json").read_text())
+    assert csv_rows == rep["runs"] == plotted[-1] == 2 and rep["stop"].startswith("interrupted after 2 runs")
+    assert "(held, stored, reused)" in captured.out or "(perforated, stored, reused)" in captured.out
+
+
+def test_the_v50_picture_counts_the_runs_and_its_legends_hide_none():
+    import matplotlib.pyplot as plt
+
+    from fabric_fenicsx.studies import v50
+
+    rows = [{"run": i, "velocity": v, "outcome": o, "residual_velocity": 5.0 if o == "perforated" else -1.0,
+             "wall_time_s": 1.0} for i, (v, o) in enumerate([(30, "held"), (35, "held"), (38, "perforated"),
+                                                              (36, "perforated"), (34, "held"), (45, "perforated")])]
+    rep = v50.report(rows, "test")
+    fig = v50.figure(rep, rows, "t")
+    try:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        for ax in fig.axes:
+            legend = ax.get_legend()
+            assert not legend.get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
+        labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+        assert "runs: 3 perforated (at 1), 3 held (at 0)" in labels
+    finally:
+        plt.close(fig)
+    assert "process start-up not counted" in v50.format_report(rep)
+
+
+# ----------------------------------------------------------------------------- study v50 interrupted
+DRIVER = """
+import os, sys
+sys.path.insert(0, @ROOT@)
+from fabric_fenicsx.studies import runpool
+from tests.tools.limits import stand_in_limits
+
+def command(run, folder):
+    if os.environ.get("SLOW_V50") and "run.stop_when_held=true" in run.overrides:
+        pid = str(folder / "pid")
+        return [sys.executable, "-c", f"import os, time; open({pid!r}, 'w').write(str(os.getpid())); time.sleep(300)"]
+    return stand_in_limits(run, folder)
+
+runpool._command = command
+runpool._stored = lambda run, folder: None
+from fabric_fenicsx.cli import main
+code = main(sys.argv[1:])
+import threading
+print("threads left:", [t.name for t in threading.enumerate() if t is not threading.main_thread()], file=sys.stderr)
+sys.exit(code)
+"""
+
+
+def _study_v50(tmp_path, out, slow: bool):
+    import os
+    import subprocess
+
+    driver = tmp_path / "driver.py"
+    driver.write_text(DRIVER.replace("@ROOT@", repr(str(ROOT))))
+    env = {k: v for k, v in os.environ.items() if k != "SLOW_V50"}
+    if slow:
+        env["SLOW_V50"] = "1"
+    argv = [sys.executable, str(driver), "study", "v50", "--out", str(out), "--jobs", "2", "--max-runs", "6",
+            "--ci", "1", "--quiet"]
+    return subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _alive(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_an_interrupted_study_v50_ends_its_runs_and_releases_its_lock(tmp_path, sig):
+    import signal
+    import time
+
+    from fabric_fenicsx.impact.lock import LOCK_NAME
+
+    out = tmp_path / "study"
+    proc = _study_v50(tmp_path, out, slow=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("v50/*/run_*/pid")) and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.2)
+        time.sleep(0.5)
+        pids = [int(p.read_text()) for p in out.glob("v50/*/run_*/pid") if p.read_text()]
+        assert pids, "the V50 phase was not reached"
+        proc.send_signal(getattr(signal, sig))
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == {"SIGINT": 130, "SIGTERM": 143}[sig], err
+    assert "Traceback" not in err and "threads left: []" in err, err
+    pids = [int(p.read_text()) for p in out.glob("v50/*/run_*/pid") if p.read_text()]
+    assert not [pid for pid in pids if _alive(pid)], "impact runs left running"
+    assert not list(out.rglob(LOCK_NAME))
+    rerun = _study_v50(tmp_path, out, slow=False)
+    rerun.communicate(timeout=300)
+    straight = _study_v50(tmp_path, tmp_path / "straight", slow=False)
+    straight.communicate(timeout=300)
+    assert rerun.returncode == straight.returncode == 1             # XY45's stand-in runs fail
+    for scene in ("Y90", "XY0", "XY45", "Y0"):
+        assert (out / "v50" / scene / "v50.csv").read_text() == \
+            (tmp_path / "straight" / "v50" / scene / "v50.csv").read_text()
