@@ -40,7 +40,7 @@ def parse_bracket(text: str) -> tuple[float, float]:
     return lo, hi
 
 
-def _first_missing(path: Path) -> Path | None:
+def first_missing(path: Path) -> Path | None:
     """The outermost folder of ``path`` that does not exist yet (None if ``path`` exists)."""
     missing = None
     for p in (path, *path.parents):
@@ -71,7 +71,7 @@ def out_problem(out) -> str | None:
     if not str(out).strip():
         return "--out is empty: give a folder (or leave --out out for the default)"
     path = Path(out)
-    first = _first_missing(path)
+    first = first_missing(path)
     try:
         check_output_dir(str(path))
     except InputError as err:
@@ -81,19 +81,21 @@ def out_problem(out) -> str | None:
     return None
 
 
-def memory_jobs(jobs: int, scene, say, what: str = "runs") -> int:
-    """``jobs`` capped to the runs of ``scene`` (each the size :mod:`fabric_fenicsx.impact.sizing`
-    estimates) that fit in the free memory, at least 1; ``say`` is told when it caps."""
+def memory_jobs(jobs: int, scenes, say, scheduler: str | None = None) -> int:
+    """``jobs`` capped to the runs that fit in the free memory at once, each of the size
+    :mod:`fabric_fenicsx.impact.sizing` estimates for the largest of ``scenes``, at least 1;
+    ``say`` is told when it caps. Runs on another machine (``scheduler`` tcp://...) are not
+    capped here; those of ``local:N`` are."""
     from fabric_fenicsx.impact.sizing import estimate, free_memory
 
     free = free_memory()
-    if free is None:
+    if free is None or (scheduler is not None and not scheduler.startswith("local:")):
         return jobs
-    each = estimate(scene).memory
+    each = max(estimate(scene).memory for scene in scenes)
     fit = max(1, int(free // each))
     if jobs > fit:
-        say(f"{fit} {what} at a time instead of {jobs}: each needs about {each / 1e6:,.0f} MB and "
-            f"{free / 1e6:,.0f} MB are free")
+        say(f"{fit} runs at a time instead of {jobs}: each needs about {each / 1e6:,.0f} MB (the run's size "
+            f"estimate) and {free / 1e6:,.0f} MB are free")
         return fit
     return jobs
 

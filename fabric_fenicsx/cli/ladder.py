@@ -123,12 +123,16 @@ def _open(args, scene, out: Path, ladder, bracket) -> int:
 
 
 def _ladder(args, scene, out: Path, ladder, bracket, executor) -> int:
+    from fabric_fenicsx.cli._checks import memory_jobs
+    from fabric_fenicsx.impact.scene import load_scene
     from fabric_fenicsx.studies import ensemble, v50
     from fabric_fenicsx.studies import ladder as study
     from fabric_fenicsx.studies.neyer import NeyerDesign
     from fabric_fenicsx.studies.runpool import write_atomic
 
-    jobs = args.jobs or executor.slots
+    scenes = [load_scene(args.scene, [*args.overrides, *r.overrides()]) for r in ladder]
+    jobs = memory_jobs(args.jobs or executor.slots, scenes, lambda line: print(f"{PROG}: {line}", flush=True),
+                       args.scheduler)
     first_seed = None if scene.material.scatter == "none" else scene.material.seed
     velocity = _given(args.velocity, scene.projectile.velocity)
     say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))

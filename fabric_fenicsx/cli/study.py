@@ -147,9 +147,13 @@ def _run_study(args, executor, t0: float) -> int:
     from fabric_fenicsx.studies import chapter4
     from fabric_fenicsx.studies.runpool import Progress, run_all, write_atomic
 
+    from fabric_fenicsx.cli._checks import memory_jobs
+    from fabric_fenicsx.impact.scene import load_scene
+
     out = Path(args.out)
-    jobs = args.jobs or executor.slots
     overrides = (*RUN_OUTPUT, *args.overrides)
+    scenes = [load_scene(str(chapter4.SCENE_DIR / s), list(overrides)) for s in chapter4.SCENES.values()]
+    jobs = memory_jobs(args.jobs or executor.slots, scenes, lambda line: _say(f"{PROG}: {line}"), args.scheduler)
     runs = chapter4.plan(args.name, overrides, members=args.members)
     where = f", on {executor.description}" if executor.remote else ""
     print(f"{PROG} {args.name}: {len(runs)} runs, {jobs} at a time, into {out / 'runs'}{where}", flush=True)

@@ -125,9 +125,8 @@ def _estimate(args, scene, out: Path, executor) -> int:
     say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
     lo, hi = (float(x) for x in args.bracket.split(","))
     design = NeyerDesign(lo, hi, resolution=args.resolution)
-    jobs = args.jobs or executor.slots
-    if not executor.remote:
-        jobs = memory_jobs(jobs, scene, lambda line: print(f"{PROG}: {line}", flush=True))
+    jobs = memory_jobs(args.jobs or executor.slots, [scene], lambda line: print(f"{PROG}: {line}", flush=True),
+                       args.scheduler)
     first_seed = None if scene.material.scatter == "none" else args.seeds
     out.mkdir(parents=True, exist_ok=True)
     table = out / "v50.csv"

@@ -323,3 +323,52 @@ def test_an_interrupted_study_v50_ends_its_runs_and_releases_its_lock(tmp_path, 
     for scene in ("Y90", "XY0", "XY45", "Y0"):
         assert (out / "v50" / scene / "v50.csv").read_text() == \
             (tmp_path / "straight" / "v50" / scene / "v50.csv").read_text()
+
+
+# ----------------------------------------------------------------------------- memory, folders, locks
+def test_runs_at_a_time_are_capped_by_the_free_memory(tmp_path, monkeypatch, capsys):
+    from fabric_fenicsx.cli import main
+    from fabric_fenicsx.impact import sizing
+
+    monkeypatch.setattr(runpool, "_command", _probit_runs)
+    monkeypatch.setattr(runpool, "_stored", _stored)
+    monkeypatch.setattr(sizing, "free_memory", lambda: 1.2e9)      # room for two runs of ~0.45 GB
+    started = []
+    real_start = runpool._start
+    monkeypatch.setattr(runpool, "_start", lambda run, *a: (started.append(run.key), real_start(run, *a))[1])
+    assert main(["v50", SCENE, "--jobs", "6", "--max-runs", "6", "--ci", "0.1", "--out", str(tmp_path / "V")]) == 0
+    out = capsys.readouterr().out
+    assert "2 runs at a time instead of 6: each needs about" in out and "MB are free" in out
+    assert "2 runs at a time, until" in out and len(started) == 6
+
+
+def test_a_file_where_a_run_folder_goes_is_named_not_a_full_disk(tmp_path, monkeypatch, capsys):
+    from fabric_fenicsx.cli import main
+
+    monkeypatch.setattr(runpool, "_command", _probit_runs)
+    out = tmp_path / "V"
+    out.mkdir()
+    (out / "run_000").write_text("in the way\n")
+    assert main(["v50", SCENE, "--jobs", "1", "--max-runs", "4", "--quiet", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "run_000 is a file, where the run's folder goes; move it away" in err and "free space" not in err
+
+
+def test_an_empty_lock_says_how_to_clear_it(tmp_path, capsys, no_runs):
+    from fabric_fenicsx.impact.lock import LOCK_NAME
+
+    out = tmp_path / "V"
+    out.mkdir()
+    (out / LOCK_NAME).write_text("")
+    line = _refused(capsys, ["v50", SCENE, "--out", str(out)], "empty or unreadable lock")
+    assert f"delete {out / LOCK_NAME}" in line and "wait until it ends" not in line
+
+
+def test_an_unreachable_scheduler_leaves_no_folder(tmp_path, capsys, no_runs):
+    pytest.importorskip("distributed")
+    out = tmp_path / "deep" / "V"
+    from fabric_fenicsx.cli import main
+
+    assert main(["v50", SCENE, "--scheduler", "tcp://127.0.0.1:9", "--out", str(out)]) == 2
+    assert "Traceback" not in capsys.readouterr().err
+    assert not (tmp_path / "deep").exists()
