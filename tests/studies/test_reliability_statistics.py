@@ -372,3 +372,58 @@ def test_an_unreachable_scheduler_leaves_no_folder(tmp_path, capsys, no_runs):
     assert main(["v50", SCENE, "--scheduler", "tcp://127.0.0.1:9", "--out", str(out)]) == 2
     assert "Traceback" not in capsys.readouterr().err
     assert not (tmp_path / "deep").exists()
+
+
+# ----------------------------------------------------------------------------- Ctrl-C, then SIGTERM
+SLOW_CLEAN_UP = """
+import sys, time, types
+sys.path.insert(0, @ROOT@)
+from fabric_fenicsx import cli
+from fabric_fenicsx.impact.lock import FolderLock
+
+def add_arguments(parser):
+    parser.add_argument("out")
+
+def run(args):
+    lock = FolderLock(args.out, "impact run").acquire()
+    try:
+        open(args.out + "/ready", "w").close()
+        time.sleep(60)
+    finally:
+        time.sleep(1.0)                 # closing the output files
+        lock.release()
+
+module = types.ModuleType("slow_clean_up")
+module.add_arguments, module.run = add_arguments, run
+sys.modules["slow_clean_up"] = module
+cli.SUBCOMMANDS["slow"] = ("slow_clean_up", "a run whose clean-up takes a second")
+sys.exit(cli.main(["slow", sys.argv[1]]))
+"""
+
+
+def test_a_sigterm_during_the_clean_up_of_a_ctrl_c_does_not_leave_the_lock(tmp_path):
+    """A run of a v50 given Ctrl-C (with its process group) and then SIGTERM by its pool, while
+    it cleans up: its lock is still released."""
+    import signal
+    import subprocess
+    import time
+
+    from fabric_fenicsx.impact.lock import LOCK_NAME
+
+    driver = tmp_path / "slow.py"
+    driver.write_text(SLOW_CLEAN_UP.replace("@ROOT@", repr(str(ROOT))))
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, str(driver), str(out)], stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (out / "ready").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130 and "Traceback" not in err, err
+    assert not (out / LOCK_NAME).exists()
