@@ -255,17 +255,21 @@ def command(run, folder):
         return [sys.executable, "-c", f"import os, time; open({pid!r}, 'w').write(str(os.getpid())); time.sleep(300)"]
     return stand_in_limits(run, folder)
 
-runpool._command = command
-runpool._stored = lambda run, folder: None
-from fabric_fenicsx.cli import main
-code = main(sys.argv[1:])
-import threading
-print("threads left:", [t.name for t in threading.enumerate() if t is not threading.main_thread()], file=sys.stderr)
-sys.exit(code)
+if __name__ == "__main__":          # not in the processes of a local dask cluster
+    runpool._command = command
+    runpool._stored = lambda run, folder: None
+    from fabric_fenicsx.cli import main
+    code = main(sys.argv[1:])
+    import threading
+    print("threads left:", [t.name for t in threading.enumerate() if t is not threading.main_thread()],
+          file=sys.stderr)
+    sys.exit(code)
 """
 
 
-def _study_v50(tmp_path, out, slow: bool):
+def _driven(tmp_path, argv, slow: bool, **popen):
+    """The command line ``argv`` in a process whose runs are stand-ins (:data:`DRIVER`); with
+    ``slow`` its V50 runs sleep until they are ended."""
     import os
     import subprocess
 
@@ -274,9 +278,24 @@ def _study_v50(tmp_path, out, slow: bool):
     env = {k: v for k, v in os.environ.items() if k != "SLOW_V50"}
     if slow:
         env["SLOW_V50"] = "1"
-    argv = [sys.executable, str(driver), "study", "v50", "--out", str(out), "--jobs", "2", "--max-runs", "6",
-            "--ci", "1", "--quiet"]
-    return subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen([sys.executable, str(driver), *argv], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **popen)
+
+
+def _study_v50(tmp_path, out, slow: bool):
+    return _driven(tmp_path, ["study", "v50", "--out", str(out), "--jobs", "2", "--max-runs", "6", "--ci", "1",
+                              "--quiet"], slow)
+
+
+def _wait_for_runs(out: Path, proc, limit: float = 120.0) -> list[int]:
+    """The process ids of the sleeping V50 runs under ``out``, once one has started."""
+    import time
+
+    deadline = time.monotonic() + limit
+    while not list(out.glob("**/run_*/pid")) and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    time.sleep(0.5)
+    return [int(p.read_text()) for p in out.glob("**/run_*/pid") if p.read_text()]
 
 
 def _alive(pid: int) -> bool:
@@ -292,19 +311,13 @@ def _alive(pid: int) -> bool:
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
 def test_an_interrupted_study_v50_ends_its_runs_and_releases_its_lock(tmp_path, sig):
     import signal
-    import time
 
     from fabric_fenicsx.impact.lock import LOCK_NAME
 
     out = tmp_path / "study"
     proc = _study_v50(tmp_path, out, slow=True)
     try:
-        deadline = time.monotonic() + 120
-        while not list(out.glob("v50/*/run_*/pid")) and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.2)
-        time.sleep(0.5)
-        pids = [int(p.read_text()) for p in out.glob("v50/*/run_*/pid") if p.read_text()]
-        assert pids, "the V50 phase was not reached"
+        assert _wait_for_runs(out, proc), "the V50 phase was not reached"
         proc.send_signal(getattr(signal, sig))
         _, err = proc.communicate(timeout=60)
     finally:
@@ -427,3 +440,32 @@ def test_a_sigterm_during_the_clean_up_of_a_ctrl_c_does_not_leave_the_lock(tmp_p
             proc.kill()
     assert proc.returncode == 130 and "Traceback" not in err, err
     assert not (out / LOCK_NAME).exists()
+
+
+def test_ctrl_c_of_a_v50_on_a_local_cluster_ends_at_once_in_one_line(tmp_path):
+    """Ctrl-C (SIGINT to the whole process group) of ``v50 --scheduler local:2``: the cluster's
+    workers do not get it, the v50 ends their runs and closes the cluster."""
+    pytest.importorskip("distributed")
+    import os
+    import signal
+    import time
+
+    from fabric_fenicsx.impact.lock import LOCK_NAME
+
+    out = tmp_path / "V"
+    proc = _driven(tmp_path, ["v50", SCENE, "--scheduler", "local:2", "--max-runs", "4", "--out", str(out)], True,
+                   start_new_session=True)
+    try:
+        assert _wait_for_runs(out, proc, 180), "no run started"
+        t0 = time.monotonic()
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        seconds = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    lines = [ln for ln in err.splitlines() if not ln.startswith("threads left")]
+    assert proc.returncode == 130 and lines == ["interrupted: output written so far is kept"], err
+    assert seconds < 10, seconds
+    pids = [int(p.read_text()) for p in out.glob("run_*/pid") if p.read_text()]
+    assert pids and not [pid for pid in pids if _alive(pid)] and not list(out.rglob(LOCK_NAME))
