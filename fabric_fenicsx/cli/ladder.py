@@ -217,7 +217,8 @@ def _markdown(rep: dict, name: str) -> str:
     lines = [f"# Error against run time: {name}", "",
              f"V50 (Neyer's design, probit, 95 % profile-likelihood interval, to {rep['ci_target']:g} m/s or "
              f"{rep['max_runs']} runs) and the mean residual velocity at {rep['velocity']:g} m/s over "
-             f"{rep['members']} members (95 % Student-t interval) on every rung.", "",
+             f"{rep['members']} members (95 % Student-t interval) on every rung; core-h: the runs' solving "
+             "(their wall_time_s), process start-up not counted.", "",
              "| rung | V50 (m/s), 95 % | sigma | V50 runs | core-h | mean residual (m/s), 95 % | members | core-h |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rep["rows"]:

@@ -266,15 +266,22 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
         out.mkdir(parents=True, exist_ok=True)
         table = out / "v50.csv"
         v50.write_table(table, [])
-        seen = {}                   # every run that ended, by index
+        seen, reused = {}, set()    # every run that ended, by index; the keys of the reused ones
 
         def on_run(row):
             seen[row["run"]] = row
             with open(table, "a", newline="") as f:
                 csv.writer(f, lineterminator="\n").writerow(v50.table_cells(row))
             if not quiet:
+                how = " (stored, reused)" if f"run_{row['run']:03d}" in reused else ""
                 _say(f"  {scene} v50 run {row['run']} at {row['velocity']:.2f} m/s: {row['outcome']}"
-                     + (f" ({row['error']})" if "error" in row else ""))
+                     + (f" ({row['error']})" if "error" in row else how))
+
+        def on_done(run, summary, was_reused):
+            if was_reused:
+                reused.add(run.key)
+            if counter is not None:
+                counter.finished(summary, was_reused)
 
         _say(f"{PROG} v50: {scene}, Neyer's design from {start[0]:g}-{start[1]:g} m/s until V50's 95 % interval "
              f"is within {ci:g} m/s or {max_runs} runs, into {out}")
@@ -288,7 +295,7 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
                                   on_run=on_run,
                                   on_batch=lambda rows, fit: v50.write_table(table, rows),
                                   on_start=None if counter is None else counter.expect,
-                                  on_done=None if counter is None else (lambda run, s, reused: counter.finished(s, reused)),
+                                  on_done=on_done,
                                   slots=slots, stop=stop)
         except BaseException as err:    # the three files describe the runs that ended, then the error goes on
             write([seen[i] for i in sorted(seen)], v50.stopped_early(err, len(seen)))
