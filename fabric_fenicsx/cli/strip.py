@@ -12,6 +12,9 @@ with ``--crack-band`` each cell's softening shortened to that of one segment (sc
 meshes run side by side in ``--jobs`` processes; each writes
 OUT/strip-<family>-<size>.csv a row per pull as it ends, and a study run again resumes from
 them. Writes OUT/strip.json, OUT/strip.png and prints the distributions and their comparison.
+Every option and OUT are checked before any pull (one line, exit 2, no folder left); the study
+holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`) while it writes there, so a second one into
+OUT stops at once. Its pulls run on this machine only: ``--scheduler`` is refused.
 """
 from __future__ import annotations
 
@@ -43,8 +46,8 @@ def _problems(args, sizes: list[float], families: list[str]) -> list[str]:
                         "first three digits, in mm)")
     if args.cell_rule not in CELL_RULES:
         problems.append(f"--cell-rule must be one of {list(CELL_RULES)}, got {args.cell_rule!r}")
-    if not args.shear_modulus >= 0:
-        problems.append(f"--shear-modulus must be >= 0 N/m, got {args.shear_modulus}")
+    if not 0 <= args.shear_modulus < float("inf"):
+        problems.append(f"--shear-modulus must be a finite number >= 0 N/m, got {args.shear_modulus}")
     if args.seeds < 3:
         problems.append(f"--seeds must be at least 3 (a distribution), got {args.seeds}")
     if args.jobs is not None and args.jobs < 1:

@@ -9,7 +9,10 @@ V50, V10, V90 and sigma with their profile-likelihood intervals, the observed fr
 velocity bin, and the Lambert-Jonas fit of the perforating runs' residual velocities. Writes
 OUT/v50.csv (a row as each run ends, in run order after each batch), OUT/v50.json, OUT/v50.png
 and each run's output (OUT/run_<i>). Run again into the same OUT, it reuses the stored runs and
-goes on where it stopped (a larger --max-runs or a smaller --ci goes further).
+goes on where it stopped (a larger --max-runs or a smaller --ci goes further). Interrupted or
+stopped, it writes v50.csv, v50.json and v50.png from the runs that ended. Every argument and OUT
+are checked before any run (one line, exit 2, no folder left); ``--jobs`` is capped to the runs
+that fit in the free memory (:func:`fabric_fenicsx.cli._checks.memory_jobs`).
 """
 from __future__ import annotations
 

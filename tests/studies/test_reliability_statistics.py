@@ -90,7 +90,19 @@ def test_a_bracket_reached_at_max_runs_is_not_called_sharp():
     assert _est(sharp, "v50").startswith("sharp: held at 40.00")
 
 
-@pytest.mark.parametrize("extra, needle", [
+ESTIMATE_CASES = [
+    (["--bracket", "20,inf"], "--bracket must be LO,HI"),
+    (["--bracket", "0.5,10"], "the design never goes below 1 m/s"),
+    (["--bracket", "nan,10"], "--bracket must be LO,HI"),
+    (["--out", ""], "--out is empty"),
+    (["--jobs", "0"], "--jobs must be at least 1"),
+    (["--ci", "0"], "--ci must be a width > 0"),
+    (["--max-runs", "1"], "--max-runs must be at least 2"),
+    (["--scheduler", "nowhere"], "--scheduler must be the address"),
+]
+"""Bad arguments that ``v50`` and ``ladder`` share."""
+
+LADDER_CASES = [
     (["--velocity", "nan"], "--velocity must be a finite number > 0"),
     (["--velocity", "-3"], "--velocity must be a finite number > 0"),
     (["--velocity", "0"], "--velocity must be a finite number > 0"),
@@ -99,27 +111,18 @@ def test_a_bracket_reached_at_max_runs_is_not_called_sharp():
     (["--variant", "run.damping=0.05", "--variant", "run.damping=0.05", "--variant-size", "0.004"],
      "--variant names run.damping=0.05 more than once"),
     (["--sizes", "0.004,0.0040000001"], "rungs would share a folder (graded-4mm)"),
-    (["--bracket", "20,inf"], "--bracket must be LO,HI"),
-    (["--bracket", "0.5,10"], "the design never goes below 1 m/s"),
-    (["--out", ""], "--out is empty"),
-])
-def test_bad_ladder_arguments_stop_before_any_run_and_leave_no_folder(tmp_path, capsys, no_runs, extra, needle):
+    (["--members", "1"], "--members must be at least 2"),
+]
+
+V50_CASES = [(["--resolution", "0"], "--resolution must lie in (0, 1]"), (["--seeds=-1"], "--seeds must be a seed >= 0")]
+
+
+@pytest.mark.parametrize("command, extra, needle", [("ladder", *c) for c in ESTIMATE_CASES + LADDER_CASES]
+                         + [("v50", *c) for c in ESTIMATE_CASES + V50_CASES])
+def test_bad_arguments_stop_before_any_run_and_leave_no_folder(tmp_path, capsys, no_runs, command, extra, needle):
     out = tmp_path / "deep" / "L"
-    argv = ["ladder", SCENE, "--sizes", "0.004", "--families", "graded", "--out", str(out), *extra]
-    _refused(capsys, argv, needle, folder=tmp_path / "deep")
-
-
-# ----------------------------------------------------------------------------- v50
-@pytest.mark.parametrize("extra, needle", [
-    (["--bracket", "20,inf"], "--bracket must be LO,HI"),
-    (["--bracket", "0.5,10"], "the design never goes below 1 m/s"),
-    (["--bracket", "nan,10"], "--bracket must be LO,HI"),
-    (["--out", ""], "--out is empty"),
-    (["--jobs", "0"], "--jobs must be at least 1"),
-])
-def test_bad_v50_arguments_stop_before_any_run_and_leave_no_folder(tmp_path, capsys, no_runs, extra, needle):
-    out = tmp_path / "deep" / "V"
-    _refused(capsys, ["v50", SCENE, "--out", str(out), *extra], needle, folder=tmp_path / "deep")
+    rungs = ["--sizes", "0.004", "--families", "graded"] if command == "ladder" else []
+    _refused(capsys, [command, SCENE, *rungs, "--out", str(out), *extra], needle, folder=tmp_path / "deep")
 
 
 def test_an_empty_scene_name_is_named_as_such(tmp_path, capsys, no_runs):
