@@ -298,7 +298,7 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
                                   on_done=on_done,
                                   slots=slots, stop=stop)
         except BaseException as err:    # the three files describe the runs that ended, then the error goes on
-            write([seen[i] for i in sorted(seen)], v50.stopped_early(err, len(seen)))
+            v50.write_stopped(write, seen, err)
             raise
         rows = result["rows"]
         rep = write(rows, result["stop"])

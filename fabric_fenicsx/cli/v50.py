@@ -169,7 +169,7 @@ def _estimate(args, scene, out: Path, executor) -> int:
                               first_seed=first_seed, executor=executor, on_run=on_run, on_batch=on_batch,
                               on_done=lambda run, summary, was: reused.add(run.key) if was else None)
     except BaseException as err:        # the three files describe the runs that ended, then the error goes on
-        report([seen[i] for i in sorted(seen)], v50.stopped_early(err, len(seen)))
+        v50.write_stopped(report, seen, err)
         raise
     rep = report(result["rows"], result["stop"])
     print(v50.format_report(rep))

@@ -31,7 +31,7 @@ import numpy as np
 from fabric_fenicsx.studies.neyer import NeyerDesign, Shot
 
 __all__ = ["COLUMNS", "TWIN_STEP", "outcome", "member_run", "estimate", "report", "format_report", "format_interval",
-           "table_cells", "write_table", "write_report", "stopped_early", "thesis_points", "plot", "figure"]
+           "table_cells", "write_table", "write_report", "write_stopped", "thesis_points", "plot", "figure"]
 
 COLUMNS = ("run", "seed", "velocity", "outcome", "residual_velocity", "absorbed_energy", "viscous_dissipation",
            "removed_cells", "damage_onset_radius", "damage_extent_radius", "end_reason", "phase", "wall_time_s",
@@ -298,11 +298,17 @@ def write_report(out, rows: list[dict], stop: str, scene_name: str, extra: dict,
     return rep
 
 
-def stopped_early(err: BaseException, n: int) -> str:
-    """The ``stop`` of an estimate that ended on ``err`` (an interruption, a stopped pool) after
-    ``n`` runs."""
+def write_stopped(write, seen: dict, err: BaseException) -> None:
+    """After ``err`` (an interruption, a stopped pool) ended an estimate early: ``write(rows,
+    stop)`` (:func:`write_report` with the estimate's settings) of the runs ``seen`` ({index:
+    row}), so that v50.csv, v50.json and v50.png describe the runs that ended. A write that fails
+    (a full disk) is left: ``err`` is what gets reported."""
+    rows = [seen[i] for i in sorted(seen)]
     why = "interrupted" if isinstance(err, KeyboardInterrupt) else f"stopped ({err})"
-    return f"{why} after {n} runs: run it again to go on (its complete runs are reused)"
+    try:
+        write(rows, f"{why} after {len(rows)} runs: run it again to go on (its complete runs are reused)")
+    except OSError:
+        pass
 
 
 def thesis_points(scene_name: str) -> dict:
