@@ -331,6 +331,10 @@ def test_an_interrupted_study_v50_ends_its_runs_and_releases_its_lock(tmp_path, 
     pids = [int(p.read_text()) for p in out.glob("v50/*/run_*/pid") if p.read_text()]
     assert not [pid for pid in pids if _alive(pid)], "impact runs left running"
     assert not list(out.rglob(LOCK_NAME))
+    for scene in ("Y90", "XY0", "XY45", "Y0"):       # each scene's three files: the runs that ended
+        rep = json.loads((out / "v50" / scene / "v50.json").read_text())
+        csv_rows = len((out / "v50" / scene / "v50.csv").read_text().splitlines()) - 1
+        assert rep["runs"] == len(rep["rows"]) == csv_rows and rep["stop"].startswith(("interrupted", "stopped"))
     rerun = _study_v50(tmp_path, out, slow=False)
     rerun.communicate(timeout=300)
     straight = _study_v50(tmp_path, tmp_path / "straight", slow=False)
