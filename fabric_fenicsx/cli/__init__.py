@@ -57,7 +57,13 @@ class Terminated(KeyboardInterrupt):
 
 
 def _terminate(signum, frame):
-    raise Terminated()
+    """The first SIGTERM or SIGINT: raised as :class:`Terminated` or KeyboardInterrupt; later
+    ones are ignored, so that the clean-up it starts (ending runs, closing files, releasing
+    locks) is not cut short (a study ends its runs with SIGTERM right after the Ctrl-C they got
+    too). SIGKILL still ends a clean-up that hangs."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _default_sigterm_in_child() -> None:
@@ -122,9 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if getattr(args, "_missing", None):
         parser.error(args._missing)
-    previous = signal.getsignal(signal.SIGTERM)
-    if previous is signal.SIG_DFL:
-        signal.signal(signal.SIGTERM, _terminate)
+    previous = _handle_interruptions()
     try:
         return int(importlib.import_module(args._module).run(args) or 0)
     except KeyboardInterrupt as err:
@@ -133,8 +137,23 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{what}: output written so far is kept", file=sys.stderr, flush=True)
         return 143 if isinstance(err, Terminated) else 130
     finally:
-        if previous is signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, signal.SIG_DFL)   # an in-process caller keeps its own
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)                     # an in-process caller keeps its own
+
+
+def _handle_interruptions() -> dict:
+    """:func:`_terminate` for SIGTERM and SIGINT where they have their default handling (not
+    where a caller installed its own, nor in a thread); returns ``{signal: handler}`` to put back."""
+    import threading
+
+    defaults = {signal.SIGTERM: signal.SIG_DFL, signal.SIGINT: signal.default_int_handler}
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    previous = {sig: signal.getsignal(sig) for sig in defaults}
+    previous = {sig: handler for sig, handler in previous.items() if handler is defaults[sig]}
+    for sig in previous:
+        signal.signal(sig, _terminate)
+    return previous
 
 
 if __name__ == "__main__":

@@ -20,6 +20,9 @@ def add_scheduler_argument(parser: argparse.ArgumentParser, runs: str) -> None:
 
 def guarded(prog: str, out, what: str, run_id: str, body, reused: str = "its complete runs are reused") -> int:
     """Run ``body()`` holding the lock of ``out`` as ``what``; messages are prefixed with ``prog``."""
+    from pathlib import Path
+
+    from fabric_fenicsx.cli._checks import first_missing, remove_new
     from fabric_fenicsx.impact.lock import FolderLock, FolderLocked
     from fabric_fenicsx.studies.executor import ClusterError
     from fabric_fenicsx.studies.runpool import DISK_ERRNOS, PoolStopped
@@ -28,6 +31,7 @@ def guarded(prog: str, out, what: str, run_id: str, body, reused: str = "its com
         print(f"{prog}: {text}", file=sys.stderr, flush=True)
 
     lock = FolderLock(out, what, run_id=run_id, warn=lambda m: say(f"warning: {m}"))
+    new = first_missing(Path(out))
     try:
         lock.acquire()
     except FolderLocked as err:
@@ -50,6 +54,8 @@ def guarded(prog: str, out, what: str, run_id: str, body, reused: str = "its com
         return 1
     except ClusterError as err:
         say(str(err))
+        lock.release()
+        remove_new(Path(out), new)          # nothing ran: a folder made for the lock goes again
         return 2
     finally:
         lock.release()

@@ -49,31 +49,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _parse(args) -> tuple[list, list, tuple, list[str]]:
     """(families, sizes, bracket, problems) from the arguments."""
+    from fabric_fenicsx.cli._checks import parse_bracket, positive_problem
     from fabric_fenicsx.cli.v50 import estimate_problems
 
     problems = estimate_problems(args)
     families = [f.strip() for f in args.families.split(",") if f.strip()]
     try:
-        sizes = sorted({float(s) for s in args.sizes.split(",")}, reverse=True)
-        if not sizes or min(sizes) <= 0:
+        given = [float(s) for s in args.sizes.split(",")]
+        sizes = sorted(set(given), reverse=True)
+        if not sizes or not all(0 < s < float("inf") for s in sizes):
             raise ValueError
     except ValueError:
         problems.append(f"--sizes must be positive sizes in m separated by commas, got {args.sizes!r}")
-        sizes = []
+        given = sizes = []
     if not families:
         problems.append("--families names no family")
+    for option, items in (("--families", families), ("--sizes", given), ("--variant", args.variants)):
+        twice = sorted({str(x) for x in items if items.count(x) > 1})
+        if twice:
+            problems.append(f"{option} names {', '.join(twice)} more than once (each rung once)")
     if args.members < 2:
         problems.append(f"--members must be at least 2 (an interval needs two), got {args.members}")
     if any("=" not in v for v in args.variants):
         problems.append(f"--variant must be SECTION.KEY=VALUE, got {args.variants!r}")
-    bracket = (20.0, 60.0) if any(p.startswith("--bracket") for p in problems) else \
-        tuple(float(x) for x in args.bracket.split(","))
+    problems += [p for p in (positive_problem("--velocity", args.velocity, "m/s"),
+                             positive_problem("--variant-size", args.variant_size, "m")) if p]
+    bracket = (20.0, 60.0) if any(p.startswith("--bracket") for p in problems) else parse_bracket(args.bracket)
     return families, sizes, bracket, problems
 
 
+def _given(value, default):
+    """``value`` where the option was given (0 included: the checks refuse it), else ``default``."""
+    return default if value is None else value
+
+
 def run(args: argparse.Namespace) -> int:
+    from fabric_fenicsx.cli._checks import out_problem
     from fabric_fenicsx.cli.impact import _size
-    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+    from fabric_fenicsx.impact.scene import InputError, load_scene
     from fabric_fenicsx.studies.ladder import rungs
 
     if _size() > 1:
@@ -81,16 +94,19 @@ def run(args: argparse.Namespace) -> int:
         return 2
     families, sizes, bracket, problems = _parse(args)
     try:
+        if problems:
+            raise ValueError("; ".join(problems))
         scene = load_scene(args.scene, args.overrides)
-        ladder = rungs(families, sizes, args.variants, args.variant_size or scene.mesh.h_centre) if not problems else []
+        velocity = [f"projectile.velocity={args.velocity!r}"] if args.velocity is not None else []
+        ladder = rungs(families, sizes, args.variants, _given(args.variant_size, scene.mesh.h_centre))
         for r in ladder:          # every rung's settings are valid before the first run
-            load_scene(args.scene, [*args.overrides, *r.overrides()])
+            load_scene(args.scene, [*args.overrides, *r.overrides(), *velocity])
         out = Path(args.out or Path("out") / f"ladder-{scene.name}")
-        check_output_dir(str(out))
+        problem = out_problem(args.out if args.out is not None else out)
+        if problem:
+            raise ValueError(problem)
     except (InputError, ValueError) as err:
-        problems.append(str(err))
-    if problems:
-        print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
+        print(f"{PROG}: {err}", file=sys.stderr)
         return 2
     from fabric_fenicsx.cli._guarded import guarded
 
@@ -107,14 +123,18 @@ def _open(args, scene, out: Path, ladder, bracket) -> int:
 
 
 def _ladder(args, scene, out: Path, ladder, bracket, executor) -> int:
+    from fabric_fenicsx.cli._checks import memory_jobs
+    from fabric_fenicsx.impact.scene import load_scene
     from fabric_fenicsx.studies import ensemble, v50
     from fabric_fenicsx.studies import ladder as study
     from fabric_fenicsx.studies.neyer import NeyerDesign
     from fabric_fenicsx.studies.runpool import write_atomic
 
-    jobs = args.jobs or executor.slots
+    scenes = [load_scene(args.scene, [*args.overrides, *r.overrides()]) for r in ladder]
+    jobs = memory_jobs(args.jobs or executor.slots, scenes, lambda line: print(f"{PROG}: {line}", flush=True),
+                       args.scheduler)
     first_seed = None if scene.material.scatter == "none" else scene.material.seed
-    velocity = args.velocity or scene.projectile.velocity
+    velocity = _given(args.velocity, scene.projectile.velocity)
     say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
     say(f"{PROG}: {scene.name}, {len(ladder)} rungs ({', '.join(r.key for r in ladder)}), V50 to {args.ci:g} m/s or "
         f"{args.max_runs} runs and {args.members} members at {velocity:g} m/s each, {jobs} runs at a time, into {out}")
@@ -155,10 +175,15 @@ def _ladder(args, scene, out: Path, ladder, bracket, executor) -> int:
 def _est(row: dict, stat: str) -> str:
     from fabric_fenicsx.studies.v50 import format_interval
 
+    if stat == "v50" and row.get("v50_kind") == "none in range":
+        return (f"no limit in its range: every counted run held, up to {row['v50_lo']:.2f} m/s" if row["v50_hi"] is None
+                else f"no limit in its range: every counted run went through, from {row['v50_hi']:.2f} m/s")
     if row[stat] is None:
         return "no estimate"
     if stat == "v50" and row.get("v50_kind") == "bracket":
-        return f"sharp: held at {row['v50_lo']:.2f}, through at {row['v50_hi']:.2f}"
+        sharp = str(row.get("v50_stop", "")).startswith("a sharp limit")
+        return (f"{'sharp' if sharp else 'bracket, not narrowed to a sharp limit'}: held at {row['v50_lo']:.2f}, "
+                f"through at {row['v50_hi']:.2f}")
     return f"{row[stat]:.2f} m/s {format_interval((row[f'{stat}_lo'], row[f'{stat}_hi']))}"
 
 
@@ -192,7 +217,8 @@ def _markdown(rep: dict, name: str) -> str:
     lines = [f"# Error against run time: {name}", "",
              f"V50 (Neyer's design, probit, 95 % profile-likelihood interval, to {rep['ci_target']:g} m/s or "
              f"{rep['max_runs']} runs) and the mean residual velocity at {rep['velocity']:g} m/s over "
-             f"{rep['members']} members (95 % Student-t interval) on every rung.", "",
+             f"{rep['members']} members (95 % Student-t interval) on every rung; core-h: the runs' solving "
+             "(their wall_time_s), process start-up not counted.", "",
              "| rung | V50 (m/s), 95 % | sigma | V50 runs | core-h | mean residual (m/s), 95 % | members | core-h |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rep["rows"]:

@@ -12,6 +12,9 @@ with ``--crack-band`` each cell's softening shortened to that of one segment (sc
 meshes run side by side in ``--jobs`` processes; each writes
 OUT/strip-<family>-<size>.csv a row per pull as it ends, and a study run again resumes from
 them. Writes OUT/strip.json, OUT/strip.png and prints the distributions and their comparison.
+Every option and OUT are checked before any pull (one line, exit 2, no folder left); the study
+holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`) while it writes there, so a second one into
+OUT stops at once. Its pulls run on this machine only: ``--scheduler`` is refused.
 """
 from __future__ import annotations
 
@@ -24,19 +27,11 @@ from pathlib import Path
 PROG = "fabric-fenicsx study strip"
 
 
-def run(args: argparse.Namespace) -> int:
-    import multiprocessing
+def _problems(args, sizes: list[float], families: list[str]) -> list[str]:
+    """What is wrong with the strip's options (each a line's part)."""
+    from fabric_fenicsx.cli._checks import out_problem
+    from fabric_fenicsx.material.scatter import CELL_RULES, SCATTER_MODELS
 
-    from fabric_fenicsx.material.scatter import SCATTER_MODELS
-    from fabric_fenicsx.studies import strip
-
-    try:
-        sizes = [float(s) for s in (args.sizes or "0.002,0.001").split(",")]
-        families = [f.strip() for f in (args.families or "aligned,free").split(",")]
-    except ValueError:
-        print(f"{PROG}: --sizes must be cell sizes in m separated by commas, got {args.sizes!r}",
-              file=sys.stderr)
-        return 2
     problems = []
     if args.scatter not in SCATTER_MODELS[1:]:
         problems.append(f"--scatter must be one of {list(SCATTER_MODELS[1:])}, got {args.scatter!r}")
@@ -44,23 +39,65 @@ def run(args: argparse.Namespace) -> int:
         problems.append(f"--sizes must lie in (0, 0.005] m (the strip is 10 mm wide), got {sizes}")
     if any(f not in ("aligned", "free") for f in families):
         problems.append(f"--families must name aligned and/or free, got {families}")
-    from fabric_fenicsx.material.scatter import CELL_RULES
+    names = [table_name(f, h) for f in families for h in sizes]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        problems.append(f"--families and --sizes give {', '.join(twice)} more than once (sizes must differ in their "
+                        "first three digits, in mm)")
     if args.cell_rule not in CELL_RULES:
         problems.append(f"--cell-rule must be one of {list(CELL_RULES)}, got {args.cell_rule!r}")
-    if not args.shear_modulus >= 0:
-        problems.append(f"--shear-modulus must be >= 0 N/m, got {args.shear_modulus}")
+    if not 0 <= args.shear_modulus < float("inf"):
+        problems.append(f"--shear-modulus must be a finite number >= 0 N/m, got {args.shear_modulus}")
     if args.seeds < 3:
         problems.append(f"--seeds must be at least 3 (a distribution), got {args.seeds}")
+    if args.jobs is not None and args.jobs < 1:
+        problems.append(f"--jobs must be at least 1, got {args.jobs}")
+    if args.scheduler is not None:
+        problems.append("--scheduler is not available for strip: its pulls run in processes on this machine "
+                        "(--jobs)")
+    problems += [p for p in (out_problem(args.out),) if p]
+    return problems
+
+
+def table_name(family: str, h: float) -> str:
+    """The CSV of one mesh: ``strip-aligned-2mm.csv``."""
+    return f"strip-{family}-{h * 1e3:g}mm.csv"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check the options and the output folder, then pull the strips holding the folder's lock."""
+    try:
+        sizes = [float(s) for s in (args.sizes or "0.002,0.001").split(",")]
+        families = [f.strip() for f in (args.families or "aligned,free").split(",")]
+    except ValueError:
+        print(f"{PROG}: --sizes must be cell sizes in m separated by commas, got {args.sizes!r}",
+              file=sys.stderr)
+        return 2
+    problems = _problems(args, sizes, families)
     if problems:
         print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
         return 2
+    from fabric_fenicsx.cli._guarded import guarded
+
+    return guarded(PROG, args.out, "study", "strip", lambda: _pull(args, sizes, families),
+                   "the pulls in its tables are kept, the others run")
+
+
+def _pull(args, sizes: list[float], families: list[str]) -> int:
+    """Pull every mesh's strips (:func:`~fabric_fenicsx.studies.strip.run_configuration`), then
+    write the report."""
+    import multiprocessing
+
+    from fabric_fenicsx.cli._checks import cpu_count
+    from fabric_fenicsx.studies import strip
+
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     configs = [(f, h) for f in families for h in sizes]
-    paths = {c: out / f"strip-{c[0]}-{c[1] * 1e3:g}mm.csv" for c in configs}
+    paths = {c: out / table_name(*c) for c in configs}
     seeds = list(range(args.seeds))
     t0 = time.perf_counter()
-    jobs = max(1, min(len(configs), args.jobs or len(__import__("os").sched_getaffinity(0))))
+    jobs = max(1, min(len(configs), args.jobs or cpu_count()))
     if not args.quiet:
         print(f"{PROG}: {len(configs)} meshes x ({args.seeds} seeds of {args.scatter} + no scatter), "
               f"{jobs} at a time, into {out}", flush=True)

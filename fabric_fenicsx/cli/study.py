@@ -95,12 +95,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _check(args) -> str | None:
-    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+    from fabric_fenicsx.cli._checks import doc_problem, out_problem
+    from fabric_fenicsx.impact.scene import InputError, load_scene
     from fabric_fenicsx.studies import chapter4
     from fabric_fenicsx.studies.executor import scheduler_problem
 
     if args.name not in chapter4.STUDIES:
-        return f"unknown study {args.name!r}; the studies are {', '.join(chapter4.STUDIES)}"
+        return f"unknown study {args.name!r}; the studies are {', '.join(chapter4.STUDIES)}, strip, tear"
     if args.jobs is not None and args.jobs < 1:
         return f"--jobs must be at least 1, got {args.jobs}"
     if args.members < 1:
@@ -114,10 +115,9 @@ def _check(args) -> str | None:
     try:
         for scene in chapter4.SCENES.values():
             load_scene(str(chapter4.SCENE_DIR / scene), [*RUN_OUTPUT, *args.overrides])
-        check_output_dir(args.out)
     except InputError as err:
         return str(err)
-    return None
+    return out_problem(args.out) or (doc_problem(args.doc) if args.name == "chapter4" else None)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     if _size() > 1:
         print(f"{PROG}: the runs are processes of their own (--jobs); run it without mpirun", file=sys.stderr)
         return 2
-    args.out = args.out or str(Path("out") / f"study-{args.name}")
+    args.out = str(Path("out") / f"study-{args.name}") if args.out is None else args.out
     if args.name == "tear":
         from fabric_fenicsx.cli import tear
 
@@ -162,9 +162,13 @@ def _run_study(args, executor, t0: float) -> int:
     from fabric_fenicsx.studies import chapter4
     from fabric_fenicsx.studies.runpool import Progress, run_all, write_atomic
 
+    from fabric_fenicsx.cli._checks import memory_jobs
+    from fabric_fenicsx.impact.scene import load_scene
+
     out = Path(args.out)
-    jobs = args.jobs or executor.slots
     overrides = (*RUN_OUTPUT, *args.overrides)
+    scenes = [load_scene(str(chapter4.SCENE_DIR / s), list(overrides)) for s in chapter4.SCENES.values()]
+    jobs = memory_jobs(args.jobs or executor.slots, scenes, lambda line: _say(f"{PROG}: {line}"), args.scheduler)
     runs = chapter4.plan(args.name, overrides, members=args.members)
     where = f", on {executor.description}" if executor.remote else ""
     print(f"{PROG} {args.name}: {len(runs)} runs, {jobs} at a time, into {out / 'runs'}{where}", flush=True)
@@ -255,17 +259,19 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
     from fabric_fenicsx.impact.scene import load_scene
     from fabric_fenicsx.studies import chapter4, v50
     from fabric_fenicsx.studies.neyer import NeyerDesign
-    from fabric_fenicsx.studies.runpool import write_atomic
 
     slots = threading.BoundedSemaphore(jobs)
     stop = threading.Event()        # one scene's pool stopped (a full disk): the others stop too
     limits, crashed = {}, {}
+    ended = {scene: threading.Event() for scene in chapter4.SCENES}
 
     def guarded(scene):
         try:
             limits[scene] = estimate(scene)
         except BaseException as err:        # a bug or a stopped pool, not a failed run: raised again below
             crashed[scene] = err
+        finally:
+            ended[scene].set()
 
     def estimate(scene):
         path = str(chapter4.SCENE_DIR / chapter4.SCENES[scene])
@@ -275,28 +281,42 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
         out.mkdir(parents=True, exist_ok=True)
         table = out / "v50.csv"
         v50.write_table(table, [])
+        seen, reused = {}, set()    # every run that ended, by index; the keys of the reused ones
 
         def on_run(row):
+            seen[row["run"]] = row
             with open(table, "a", newline="") as f:
                 csv.writer(f, lineterminator="\n").writerow(v50.table_cells(row))
             if not quiet:
+                how = " (stored, reused)" if f"run_{row['run']:03d}" in reused else ""
                 _say(f"  {scene} v50 run {row['run']} at {row['velocity']:.2f} m/s: {row['outcome']}"
-                     + (f" ({row['error']})" if "error" in row else ""))
+                     + (f" ({row['error']})" if "error" in row else how))
+
+        def on_done(run, summary, was_reused):
+            if was_reused:
+                reused.add(run.key)
+            if counter is not None:
+                counter.finished(summary, was_reused)
 
         _say(f"{PROG} v50: {scene}, Neyer's design from {start[0]:g}-{start[1]:g} m/s until V50's 95 % interval "
              f"is within {ci:g} m/s or {max_runs} runs, into {out}")
-        result = v50.estimate(path, overrides, out, NeyerDesign(*start), ci=ci, max_runs=max_runs, jobs=jobs,
-                              first_seed=first_seed, executor=executor, on_run=on_run,
-                              on_batch=lambda rows, fit: v50.write_table(table, rows),
-                              on_start=None if counter is None else counter.expect,
-                              on_done=None if counter is None else (lambda run, s, reused: counter.finished(s, reused)),
-                              slots=slots, stop=stop)
+        extra = dict(start=list(start), first_seed=first_seed, ci_target=ci, max_runs=max_runs)
+
+        def write(rows, stop):
+            return v50.write_report(out, rows, stop, scene, extra, with_rows=True, reference=v50.thesis_points(scene))
+        try:
+            result = v50.estimate(path, overrides, out, NeyerDesign(*start), ci=ci, max_runs=max_runs, jobs=jobs,
+                                  first_seed=first_seed, executor=executor,
+                                  on_run=on_run,
+                                  on_batch=lambda rows, fit: v50.write_table(table, rows),
+                                  on_start=None if counter is None else counter.expect,
+                                  on_done=on_done,
+                                  slots=slots, stop=stop)
+        except BaseException as err:    # the three files describe the runs that ended, then the error goes on
+            v50.write_stopped(write, seen, err)
+            raise
         rows = result["rows"]
-        v50.write_table(table, rows)
-        rep = v50.report(rows, result["stop"], scene)
-        rep.update(start=list(start), first_seed=first_seed, ci_target=ci, max_runs=max_runs)
-        write_atomic(out / "v50.json", json.dumps({**rep, "rows": rows}, indent=1, default=str))
-        v50.plot(rep, rows, out / "v50.png", title=f"{scene}: {len(rows)} runs", reference=v50.thesis_points(scene))
+        rep = write(rows, result["stop"])
         p = rep["probit"]
         _say(f"{PROG} v50: {scene}: " + (f"V50 {p['v50']:.2f} m/s {v50.format_interval(p['v50_ci'])}"
                                          if p else "no probit fit") + f" after {len(rows)} runs ({result['stop']})")
@@ -306,14 +326,33 @@ def _ballistic_limits(overrides, results: dict, v50_dir: Path, jobs: int, ci: fl
                for scene in chapter4.SCENES]
     for t in threads:
         t.start()
-    for t in threads:
-        t.join()
+    _join(threads, list(ended.values()), stop)
     stopped = [err for err in crashed.values() if isinstance(err, PoolStopped)]
     if stopped:         # the first cause, not the pools that stopped with it
         raise next((e for e in stopped if not str(e).startswith("stopped with")), stopped[0])
     for scene, err in crashed.items():
         raise RuntimeError(f"{PROG} v50: the estimate of {scene} stopped") from err
     return {scene: limits[scene] for scene in chapter4.SCENES}
+
+
+def _join(threads, ended, stop, grace: float = 30.0) -> None:
+    """Wait for the ballistic limits' threads, each of which sets its event of ``ended`` as it
+    ends. An interruption (Ctrl-C, SIGTERM) reaches only this thread: it sets ``stop``, so that
+    each thread's pool ends its runs (SIGTERM, then SIGKILL) and writes what it has, waits up to
+    ``grace`` s for them, then goes on. The events are waited for, not the threads: a
+    ``Thread.join`` that an exception interrupts leaves the thread taken for ended."""
+    try:
+        for event in ended:
+            while not event.wait(0.5):
+                pass
+    except BaseException:
+        stop.set()
+        deadline = time.monotonic() + grace
+        for event in ended:
+            event.wait(max(0.0, deadline - time.monotonic()))
+        raise
+    for t in threads:
+        t.join()
 
 
 def _report(name: str, results: dict, limits: dict, waves: dict, overrides, wall: float, out: Path,

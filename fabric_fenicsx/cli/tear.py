@@ -63,6 +63,7 @@ def _done(path: Path) -> list[dict]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from fabric_fenicsx.cli._checks import out_problem
     from fabric_fenicsx.impact.lock import FolderLock
     from fabric_fenicsx.impact.scene import InputError, check_output_dir
     from fabric_fenicsx.studies import tear
@@ -76,10 +77,13 @@ def run(args: argparse.Namespace) -> int:
         problems.append(str(err))
     if args.members > 1 and args.scatter not in ("weibull", "fibrils"):
         problems.append(f"--scatter must be weibull or fibrils, got {args.scatter!r}")
+    out_wrong = out_problem(args.out if args.out is not None else "out/study-tear")
+    if out_wrong:
+        problems.append(out_wrong)
     if problems:
         print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
         return 2
-    out = Path(args.out or "out/study-tear")
+    out = Path(args.out if args.out is not None else "out/study-tear")
     try:
         check_output_dir(out)
         with FolderLock(out, "study tear"):

@@ -9,7 +9,10 @@ V50, V10, V90 and sigma with their profile-likelihood intervals, the observed fr
 velocity bin, and the Lambert-Jonas fit of the perforating runs' residual velocities. Writes
 OUT/v50.csv (a row as each run ends, in run order after each batch), OUT/v50.json, OUT/v50.png
 and each run's output (OUT/run_<i>). Run again into the same OUT, it reuses the stored runs and
-goes on where it stopped (a larger --max-runs or a smaller --ci goes further).
+goes on where it stopped (a larger --max-runs or a smaller --ci goes further). Interrupted or
+stopped, it writes v50.csv, v50.json and v50.png from the runs that ended. Every argument and OUT
+are checked before any run (one line, exit 2, no folder left); ``--jobs`` is capped to the runs
+that fit in the free memory (:func:`fabric_fenicsx.cli._checks.memory_jobs`).
 """
 from __future__ import annotations
 
@@ -54,15 +57,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def estimate_problems(args) -> list[str]:
     """What is wrong with the arguments of :func:`add_estimate_arguments` (and --scheduler)."""
+    from fabric_fenicsx.cli._checks import parse_bracket, scene_problem
     from fabric_fenicsx.studies.executor import scheduler_problem
 
-    problems = []
+    problems = [p for p in (scene_problem(args.scene),) if p]
     try:
-        lo, hi = (float(x) for x in args.bracket.split(","))
-        if not 0 < lo < hi:
-            raise ValueError
-    except ValueError:
-        problems.append(f"--bracket must be LO,HI with 0 < LO < HI (m/s), got {args.bracket!r}")
+        parse_bracket(args.bracket)
+    except ValueError as err:
+        problems.append(str(err))
     if not args.ci > 0:
         problems.append(f"--ci must be a width > 0 m/s, got {args.ci}")
     if args.max_runs < 2:
@@ -85,7 +87,8 @@ def _problems(args) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.cli.impact import _size
-    from fabric_fenicsx.impact.scene import InputError, check_output_dir, load_scene
+    from fabric_fenicsx.cli._checks import out_problem
+    from fabric_fenicsx.impact.scene import InputError, load_scene
 
     if _size() > 1:
         print(f"{PROG}: the runs are processes of their own; run it without mpirun", file=sys.stderr)
@@ -96,10 +99,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         scene = load_scene(args.scene, args.overrides)
-        out = Path(args.out or Path("out") / f"v50-{scene.name}")
-        check_output_dir(str(out))
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    out = Path(args.out if args.out is not None else Path("out") / f"v50-{scene.name}")
+    problem = out_problem(args.out if args.out is not None else out)
+    if problem:
+        print(f"{PROG}: {problem}", file=sys.stderr)
         return 2
     from fabric_fenicsx.cli._guarded import guarded
 
@@ -115,30 +121,33 @@ def _open(args, scene, out: Path) -> int:
 
 
 def _estimate(args, scene, out: Path, executor) -> int:
+    from fabric_fenicsx.cli._checks import memory_jobs
     from fabric_fenicsx.studies import v50
     from fabric_fenicsx.studies.neyer import NeyerDesign
-    from fabric_fenicsx.studies.runpool import write_atomic
 
     say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
     lo, hi = (float(x) for x in args.bracket.split(","))
     design = NeyerDesign(lo, hi, resolution=args.resolution)
-    jobs = args.jobs or executor.slots
+    jobs = memory_jobs(args.jobs or executor.slots, [scene], lambda line: print(f"{PROG}: {line}", flush=True),
+                       args.scheduler)
     first_seed = None if scene.material.scatter == "none" else args.seeds
     out.mkdir(parents=True, exist_ok=True)
     table = out / "v50.csv"
-    v50.write_table(table, [])
     members = ("round-off twins (velocity x (1 + i 1e-12))" if first_seed is None
                else f"fabrics of seeds {first_seed}, {first_seed + 1}, ... ({scene.material.scatter} scatter)")
     say(f"{PROG}: {scene.name}, Neyer's D-optimal design from {lo:g}-{hi:g} m/s, {jobs} runs at a time, "
         f"until V50's 95 % interval is within {args.ci:g} m/s or {args.max_runs} runs; members are {members}")
     t0 = time.monotonic()
+    seen, reused = {}, set()            # every run that ended, by index; the keys of the reused ones
 
     def on_run(row):
+        seen[row["run"]] = row
         with open(table, "a", newline="") as f:
             csv.writer(f, lineterminator="\n").writerow(v50.table_cells(row))
         extra = (f", residual {row['residual_velocity']:.2f} m/s" if row["outcome"] == "perforated" else "")
+        how = "stored, reused" if f"run_{row['run']:03d}" in reused else f"{row.get('wall_time_s') or 0:.0f} s"
         say(f"run {row['run']} at {row['velocity']:.2f} m/s: {row['outcome']}{extra}"
-            + (f" ({row['error']})" if "error" in row else f" ({row.get('end_reason')}, {row.get('wall_time_s') or 0:.0f} s)"))
+            + (f" ({row['error']})" if "error" in row else f" ({row.get('end_reason')}, {how})"))
 
     def on_batch(rows, fit):
         v50.write_table(table, rows)
@@ -148,17 +157,21 @@ def _estimate(args, scene, out: Path, executor) -> int:
         say(f"v50: {len(rows)} runs ({c['held']} held, {c['perforated']} perforated): {state}; "
             f"{time.monotonic() - t0:.0f} s elapsed")
 
-    result = v50.estimate(args.scene, args.overrides, out, design, ci=args.ci, max_runs=args.max_runs, jobs=jobs,
-                          first_seed=first_seed, executor=executor, on_run=on_run, on_batch=on_batch)
-    rows = result["rows"]
-    v50.write_table(table, rows)
-    rep = v50.report(rows, result["stop"], scene.name)
-    rep.update(scene_file=str(args.scene), overrides=list(args.overrides), ci_target=args.ci,
-               max_runs=args.max_runs, jobs=jobs, start_bracket=[lo, hi], first_seed=first_seed,
-               wall_time_s=time.monotonic() - t0)
-    write_atomic(out / "v50.json", json.dumps(rep, indent=1))
-    v50.plot(rep, rows, out / "v50.png", title=f"{scene.name}: {len(rows)} runs",
-             reference=v50.thesis_points(scene.name))
+    def report(rows, stop):
+        extra = dict(scene_file=str(args.scene), overrides=list(args.overrides), ci_target=args.ci,
+                     max_runs=args.max_runs, jobs=jobs, start_bracket=[lo, hi], first_seed=first_seed,
+                     wall_time_s=time.monotonic() - t0)
+        return v50.write_report(out, rows, stop, scene.name, extra, reference=v50.thesis_points(scene.name))
+
+    v50.write_table(table, [])
+    try:
+        result = v50.estimate(args.scene, args.overrides, out, design, ci=args.ci, max_runs=args.max_runs, jobs=jobs,
+                              first_seed=first_seed, executor=executor, on_run=on_run, on_batch=on_batch,
+                              on_done=lambda run, summary, was: reused.add(run.key) if was else None)
+    except BaseException as err:        # the three files describe the runs that ended, then the error goes on
+        v50.write_stopped(report, seen, err)
+        raise
+    rep = report(result["rows"], result["stop"])
     print(v50.format_report(rep))
     print(f"report in {out / 'v50.json'}, runs in {table}, plot {out / 'v50.png'}")
     return 0

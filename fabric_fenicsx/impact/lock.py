@@ -120,8 +120,13 @@ class FolderLock:
                 continue                        # released meanwhile: try again
             stale = (h and h.get("host") == socket.gethostname() and isinstance(h.get("pid"), int)
                      and not _alive(h["pid"], h.get("ticks")))
+            if not h:
+                raise FolderLocked(f"output folder {str(self.folder)!r} holds an empty or unreadable lock "
+                                   f"{self.path} (left by a writer stopped as it began, or written by hand): if "
+                                   f"no run writes there, delete {self.path} and run it again; else give another "
+                                   "--out")
             if not stale:
-                where = ("" if not h or h.get("host") == socket.gethostname() else
+                where = ("" if h.get("host") == socket.gethostname() else
                          f"; if that run is known to be dead, delete {self.path}")
                 raise FolderLocked(f"output folder {str(self.folder)!r} is in use by "
                                    f"{self.describe(h)}: give another --out, or wait until it ends{where}")

@@ -19,6 +19,7 @@ this module imports them only when a cluster is asked for.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import secrets
@@ -228,8 +229,9 @@ class DaskCluster(_Executor):
         address = scheduler
         if scheduler.startswith("local:"):
             try:
-                self._cluster = distributed.LocalCluster(n_workers=int(scheduler[6:]), threads_per_worker=1,
-                                                         processes=True, dashboard_address=None)
+                with _deaf_to_ctrl_c():
+                    self._cluster = distributed.LocalCluster(n_workers=int(scheduler[6:]), threads_per_worker=1,
+                                                             processes=True, dashboard_address=None)
             except Exception as err:
                 raise ClusterError(f"cannot start a local dask cluster ({scheduler}): {_first_line(err)}") from None
             address = self._cluster
@@ -305,6 +307,21 @@ class DaskCluster(_Executor):
         if self._own:
             self.client.close()
         self._close_cluster()
+
+
+@contextlib.contextmanager
+def _deaf_to_ctrl_c():
+    """SIGINT ignored while the processes of a local cluster start, so that they (and the runs
+    they start) inherit it: Ctrl-C reaches only this process, which ends the runs (SIGTERM) and
+    closes the cluster, instead of every worker printing its traceback as it dies."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def shared_problem(views: dict, token: str, folder, digests: dict, version: str) -> str | None:

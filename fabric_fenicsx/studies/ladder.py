@@ -51,8 +51,14 @@ def rungs(families, sizes, variants=(), variant_size: float | None = None) -> li
         raise ValueError("a ladder needs at least one family and one size")
     if variants and variant_size not in sizes:
         raise ValueError(f"the variants' size {variant_size!r} must be one of the sizes {sizes}")
-    return ([Rung(f, s) for f in families for s in sizes]
-            + [Rung(f, variant_size, v) for v in variants for f in families])
+    ladder = ([Rung(f, s) for f in families for s in sizes]
+              + [Rung(f, variant_size, v) for v in variants for f in families])
+    keys = [r.key for r in ladder]
+    same = sorted({k for k in keys if keys.count(k) > 1})
+    if same:
+        raise ValueError(f"rungs would share a folder ({', '.join(same)}): give each family, size and variant once, "
+                         "sizes that differ in their first three digits (mm)")
+    return ladder
 
 
 def measure(rung: Rung, v50_rows: list[dict], v50_stop: str, members: list[dict]) -> dict:
@@ -69,8 +75,9 @@ def measure(rung: Rung, v50_rows: list[dict], v50_stop: str, members: list[dict]
     if p is not None:
         v50, lo, hi, kind = p["v50"], p["v50_ci"][0], p["v50_ci"][1], "probit"
     elif rep["bracket"] is not None:       # report() gives a bracket only where the probit has no fit
-        (lo, hi), kind = rep["bracket"], "bracket"
-        v50 = 0.5 * (lo + hi)
+        lo, hi = rep["bracket"]
+        one_sided = lo is None or hi is None
+        v50, kind = (None, "none in range") if one_sided else (0.5 * (lo + hi), "bracket")
     else:
         v50, lo, hi, kind = None, None, None, None
     ok = [m for m in members if "error" not in m]

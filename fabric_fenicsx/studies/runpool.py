@@ -249,8 +249,13 @@ def run_all(runs: list[Run], out_dir: str | Path, jobs: int = 1, on_done=None, r
 
 
 def _not_started(run: Run, out_dir: Path, err: OSError) -> PoolStopped:
-    """The stop of a pool whose run could not be started (its folder or log cannot be written)."""
-    return PoolStopped(f"run {run.key} cannot be started in {out_dir / run.key}: {err.strerror or err}; "
+    """The stop of a pool whose run could not be started (its folder or log cannot be written;
+    a file where its folder goes is not a matter of space)."""
+    folder = out_dir / run.key
+    if isinstance(err, (FileExistsError, NotADirectoryError)) or folder.exists() and not folder.is_dir():
+        return PoolStopped(f"run {run.key} cannot be started: {folder} is a file, where the run's folder goes; move "
+                           "it away and run it again: its complete runs are reused, the others run again")
+    return PoolStopped(f"run {run.key} cannot be started in {folder}: {err.strerror or err}; "
                        f"{_resume_hint(out_dir)}")
 
 

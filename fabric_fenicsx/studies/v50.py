@@ -31,7 +31,7 @@ import numpy as np
 from fabric_fenicsx.studies.neyer import NeyerDesign, Shot
 
 __all__ = ["COLUMNS", "TWIN_STEP", "outcome", "member_run", "estimate", "report", "format_report", "format_interval",
-           "table_cells", "write_table", "thesis_points", "plot"]
+           "table_cells", "write_table", "write_report", "write_stopped", "thesis_points", "plot", "figure"]
 
 COLUMNS = ("run", "seed", "velocity", "outcome", "residual_velocity", "absorbed_energy", "viscous_dissipation",
            "removed_cells", "damage_onset_radius", "damage_extent_radius", "end_reason", "phase", "wall_time_s",
@@ -94,7 +94,7 @@ def estimate(scene: str, overrides, out_dir, design: NeyerDesign, ci: float = 2.
              jobs: int = 1, first_seed: int | None = None, executor=None, on_run=None, on_batch=None,
              on_start=None, on_done=None, slots=None, stop=None) -> dict:
     """Run the estimate into ``out_dir`` (run_<i> folders). ``on_start(n)`` precedes a batch of
-    ``n`` runs, ``on_run(row)`` follows each run's end (and ``on_done(run, summary, reused)``,
+    ``n`` runs, ``on_run(row)`` follows each run's end (after ``on_done(run, summary, reused)``,
     the pool's own callback), ``on_batch(rows, fit)`` each batch. ``slots`` and ``stop`` are
     shared with estimates running beside this one (:func:`~fabric_fenicsx.studies.runpool.run_all`).
     Returns ``{"rows": [...], "stop": why it stopped}``."""
@@ -124,10 +124,10 @@ def estimate(scene: str, overrides, out_dir, design: NeyerDesign, ci: float = 2.
         def done(run, summary, reused):
             i, v, seed = batch[run.key]
             new[i] = _row(i, v, seed, phase, summary)
-            if on_run is not None:
-                on_run(new[i])
             if on_done is not None:
                 on_done(run, summary, reused)
+            if on_run is not None:
+                on_run(new[i])
 
         if on_start is not None:
             on_start(len(runs))
@@ -226,7 +226,8 @@ def format_report(rep: dict) -> str:
     """The report in a few lines."""
     c = rep["counts"]
     lines = [f"{rep['runs']} runs: {c['perforated']} perforated, {c['held']} held, {c['undecided']} undecided, "
-             f"{c['failed']} failed; {rep['core_seconds'] / 3600:.3g} core-hours; stopped: {rep['stop']}"]
+             f"{c['failed']} failed; {rep['core_seconds'] / 3600:.3g} core-hours of solving (the runs' wall_time_s, "
+             f"process start-up not counted); stopped: {rep['stop']}"]
     p = rep["probit"]
     if p is not None:
         lines += [f"V50   {p['v50']:8.2f} m/s  95 % {format_interval(p['v50_ci'])}",
@@ -279,6 +280,37 @@ def write_table(path, rows) -> None:
     write_atomic(path, text.getvalue())
 
 
+def write_report(out, rows: list[dict], stop: str, scene_name: str, extra: dict, with_rows: bool = False,
+                 reference: dict | None = None) -> dict:
+    """v50.csv, v50.json (:func:`report` updated with ``extra``; with ``with_rows`` also the rows)
+    and v50.png of the same ``rows`` into the folder ``out``, so that the three always describe
+    the same runs (also when an estimate stops early); returns the report."""
+    import json
+    from pathlib import Path
+
+    from fabric_fenicsx.studies.runpool import write_atomic
+
+    out = Path(out)
+    write_table(out / "v50.csv", rows)
+    rep = {**report(rows, stop, scene_name), **extra}
+    write_atomic(out / "v50.json", json.dumps({**rep, "rows": rows} if with_rows else rep, indent=1, default=str))
+    plot(rep, rows, out / "v50.png", title=f"{scene_name}: {len(rows)} runs", reference=reference)
+    return rep
+
+
+def write_stopped(write, seen: dict, err: BaseException) -> None:
+    """After ``err`` (an interruption, a stopped pool) ended an estimate early: ``write(rows,
+    stop)`` (:func:`write_report` with the estimate's settings) of the runs ``seen`` ({index:
+    row}), so that v50.csv, v50.json and v50.png describe the runs that ended. A write that fails
+    (a full disk) is left: ``err`` is what gets reported."""
+    rows = [seen[i] for i in sorted(seen)]
+    why = "interrupted" if isinstance(err, KeyboardInterrupt) else f"stopped ({err})"
+    try:
+        write(rows, f"{why} after {len(rows)} runs: run it again to go on (its complete runs are reused)")
+    except OSError:
+        pass
+
+
 def thesis_points(scene_name: str) -> dict:
     """The residual velocities of Tables 4-6 for scene ``scene_name`` (Y90 also the
     experiment's) as ``{label: (velocities, residuals)}``, the runs that bounced back left out:
@@ -297,7 +329,17 @@ def thesis_points(scene_name: str) -> dict:
 def plot(rep: dict, rows: list[dict], path, title: str = "", reference: dict | None = None) -> None:
     """v50.png: left, each counted run's outcome against velocity, the probit curve with V50's
     interval, and the binned fractions with their intervals; right, the residual velocity of the
-    perforating runs with the Lambert-Jonas curve and ``reference`` points ({label: (v, vr)})."""
+    perforating runs with the Lambert-Jonas curve and ``reference`` points ({label: (v, vr)}). The
+    legends sit below the plots, where they hide no run."""
+    import matplotlib.pyplot as plt
+
+    fig = figure(rep, rows, title, reference)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def figure(rep: dict, rows: list[dict], title: str = "", reference: dict | None = None):
+    """The figure of :func:`plot` (the caller closes it)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -310,8 +352,9 @@ def plot(rep: dict, rows: list[dict], path, title: str = "", reference: dict | N
     v = np.array([r["velocity"] for r in rows], float)
     lo, hi = (v.min(), v.max()) if v.size else (0.0, 1.0)
     grid = np.linspace(lo - 0.1 * (hi - lo + 1), hi + 0.1 * (hi - lo + 1), 200)
+    n_through = sum(r["outcome"] == "perforated" for r in counted)
     ax.plot([r["velocity"] for r in counted], [float(r["outcome"] == "perforated") for r in counted], "k|",
-            ms=14, label="runs (1 perforated, 0 held)")
+            ms=14, label=f"runs: {n_through} perforated (at 1), {len(counted) - n_through} held (at 0)")
     other = [r for r in rows if r["outcome"] not in ("perforated", "held")]
     if other:
         ax.plot([r["velocity"] for r in other], [0.5] * len(other), "rx", label="undecided or failed")
@@ -327,7 +370,7 @@ def plot(rep: dict, rows: list[dict], path, title: str = "", reference: dict | N
     ax.set_xlabel("impact velocity (m/s)")
     ax.set_ylabel("probability of perforation")
     ax.set_ylim(-0.08, 1.08)
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2)
     through = [r for r in rows if r["outcome"] == "perforated" and r.get("residual_velocity") is not None]
     bx.plot([r["velocity"] for r in through], [r["residual_velocity"] for r in through], "ko", ms=4, label="runs")
     lj = rep["lambert_jonas"]
@@ -343,8 +386,7 @@ def plot(rep: dict, rows: list[dict], path, title: str = "", reference: dict | N
         bx.plot(rv, rr, marker, mfc="none", label=label)
     bx.set_xlabel("impact velocity (m/s)")
     bx.set_ylabel("residual velocity (m/s)")
-    bx.legend(fontsize=7)
+    bx.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=1)
     fig.suptitle(title or "ballistic limit")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig

@@ -425,6 +425,21 @@ cell (item 9). Each was shown to fail on the code before: the package of commit 
 names) gives 12 failed: UnitCellError "Newton failed (no convergence) ... scaled residual
 1.95e-09 after 30 iterations" (item 3), DamageIterationError / SurrogateError (item 4),
 P1 = 21.67 N/m at alpha1 = 1e-300 (item 9).
+
+`tests/studies/test_reliability_statistics.py`: the statistics commands (`v50`, `ladder`,
+`study v50`, `study chapter4`, `study strip`) check their arguments as `impact` does: a bracket
+that is not finite or starts below the design's 1 m/s floor, a `--velocity` or `--variant-size`
+that is not a finite number > 0 (0 included: it no longer means "the default"), a family, size or
+variant given twice (or sizes that would share a rung's folder), an empty SCENE, `--out` or
+`--doc`, an `--out` that is a file or cannot be made, `study strip`'s `--jobs` below 1 or its
+`--scheduler`, each stop before any run with one line (exit 2) and leave no folder; so does an
+unreachable scheduler. A ladder rung whose runs never perforate is reported as having no limit in
+its range, and a bracket reached at `--max-runs` is not called sharp. An interrupted or stopped
+v50 writes v50.csv, v50.json and v50.png from the same runs. `study v50`, interrupted (SIGINT or
+SIGTERM) in its V50 phase, leaves no run process and no lock, and run again gives the
+uninterrupted study's tables. A run given Ctrl-C and then SIGTERM while it cleans up still
+releases its lock. `study strip` holds its folder's lock. Runs at a time are capped by the free
+memory. Each test was seen to fail on the code before the change.
 """
 
 
@@ -657,7 +672,8 @@ In the messages below `$TMP` stands for the temporary folder the harness made fo
 one each time) and `$REPO` for the repository root, where the command was started."""
 
 SHARING_NOTE = """\
-One writer per output folder: `impact`, `study`, `ensemble` and `divergence` hold a lock on
+One writer per output folder: `impact`, `study` (`strip` too), `v50`, `ladder`, `ensemble` and
+`divergence` hold a lock on
 their `--out` while they write there; a second writer stops at once (exit 2) naming the first.
 A run's size is estimated from the scene alone, and a mesh the machine cannot hold is refused
 before it is built. A study on a disk that fills up stops with one line (exit 1); resumed with
