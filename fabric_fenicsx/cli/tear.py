@@ -64,8 +64,6 @@ def _done(path: Path) -> list[dict]:
 
 def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.cli._checks import out_problem
-    from fabric_fenicsx.impact.lock import FolderLock
-    from fabric_fenicsx.impact.scene import InputError, check_output_dir
     from fabric_fenicsx.studies import tear
 
     plan, problems = _plan(args)
@@ -83,14 +81,11 @@ def run(args: argparse.Namespace) -> int:
     if problems:
         print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
         return 2
+    from fabric_fenicsx.cli._guarded import guarded
+
     out = Path(args.out if args.out is not None else "out/study-tear")
-    try:
-        check_output_dir(out)
-        with FolderLock(out, "study tear"):
-            return _run(args, plan, setup, out)
-    except InputError as err:
-        print(f"{PROG}: {err}", file=sys.stderr)
-        return 2
+    return guarded(PROG, out, "study", "tear", lambda: _run(args, plan, setup, out),
+                   "the pulls in tear.csv are kept, the others run")
 
 
 def _run(args, plan, setup, out: Path) -> int:
@@ -101,14 +96,15 @@ def _run(args, plan, setup, out: Path) -> int:
     from fabric_fenicsx.studies import tear, tear_report
     from fabric_fenicsx.surrogate.table import Surrogate
 
-    from fabric_fenicsx.impact.scene import InputError
-
     notch = setup.notch
     table = out / "tear.csv"
     recorded = out / "tear-setup.json"
     wanted = json.dumps(tear.setup_dict(setup), sort_keys=True)
     if table.exists() and recorded.exists() and recorded.read_text() != wanted:
-        raise InputError(f"{out} holds pulls of another setup ({recorded.read_text()}); give another --out")
+        print(f"{PROG}: {out} holds pulls of another setup ({recorded.read_text()}); give another --out",
+              file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
     recorded.write_text(wanted)
     rows = [r for r in _done(table) if r["notch"] == notch]
     have = {(r["family"], r["h"], int(r["seed"])) for r in rows}

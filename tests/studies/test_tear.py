@@ -103,6 +103,8 @@ def test_the_command_writes_its_report_and_refuses_bad_input(tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "rotated" in bad.stderr and "Traceback" not in bad.stderr
     assert not (tmp_path / "bad").exists()
+    empty = subprocess.run([*cmd, "--out", ""], capture_output=True, text=True, timeout=300)
+    assert empty.returncode == 2 and "--out is empty" in empty.stderr
     out = tmp_path / "tear"
     ok = subprocess.run([*cmd, "--families", "aligned,structured45", "--sizes", "0.004", "--out", str(out)],
                         capture_output=True, text=True, timeout=900)
