@@ -523,19 +523,26 @@ def _read_toml(path: Path) -> dict[str, Any]:
         raise SceneError(f"{where} is not valid TOML: {err}") from None
 
 
-def _resolve_fabric_file(scene: Scene, base: Path) -> None:
-    """Make ``fabric.file`` absolute (relative to ``base``) and check that it reads as a fabric."""
-    given = scene["fabric"]["file"]
-    if not given:
-        return
+def _regular_file(key: str, given: str, base: Path, hint: str) -> Path:
+    """The file a scene key names, absolute (relative to ``base``), or a :class:`SceneError`
+    saying what is there instead and ``hint``."""
     f = Path(given)
     if not f.is_absolute():
         f = base / f
     if not f.is_file():
         what = ("a folder, not a file" if f.is_dir() else
                 "not a regular file (a device, a pipe or a socket)" if f.exists() else "no such file")
-        raise SceneError(f"fabric.file = {given!r}: {what} ({f}); give a fabric TOML file "
-                         f"(fabric_fenicsx.material.fabric.Fabric.load) or \"\" for the built-in fabric.name")
+        raise SceneError(f"{key} = {given!r}: {what} ({f}); {hint}")
+    return f
+
+
+def _resolve_fabric_file(scene: Scene, base: Path) -> None:
+    """Make ``fabric.file`` absolute (relative to ``base``) and check that it reads as a fabric."""
+    given = scene["fabric"]["file"]
+    if not given:
+        return
+    f = _regular_file("fabric.file", given, base, "give a fabric TOML file (fabric_fenicsx.material.fabric."
+                      "Fabric.load) or \"\" for the built-in fabric.name")
     scene["fabric"]["file"] = str(f)
     scene.fabric.file = str(f)
     load_fabric(scene)
@@ -547,13 +554,7 @@ def _resolve_mesh_file(scene: Scene, base: Path) -> None:
     given = scene["mesh"]["file"]
     if not given or scene.mesh.kind != "file":
         return
-    f = Path(given)
-    if not f.is_absolute():
-        f = base / f
-    if not f.is_file():
-        what = ("a folder, not a file" if f.is_dir() else
-                "not a regular file (a device, a pipe or a socket)" if f.exists() else "no such file")
-        raise SceneError(f"mesh.file = {given!r}: {what} ({f}); give a gmsh .msh file of quadrilaterals")
+    f = _regular_file("mesh.file", given, base, "give a gmsh .msh file of quadrilaterals")
     from fabric_fenicsx.fem.mesh_file import square_msh_problem
 
     try:
