@@ -213,6 +213,20 @@ def check_scatter(out, stdout):
     _png(out / "scatter_field.png")
 
 
-CHECKS = {"demo_scatter": check_scatter, "demo_weak_form": check_weak_form, "demo_explicit_loop": check_explicit_loop,
+def check_tear(out, stdout):
+    """On the grid along the yarns the tear runs straight across the load (90 degrees from the
+    warp) and through; on the grid turned 30 degrees it follows the rows of cells, 30 degrees
+    off (the thesis's rule's mesh bias, docs/tear_test.md), at a lower load."""
+    import re
+    found = {m.group(1): (float(m.group(2)), float(m.group(3))) for m in re.finditer(
+        r"^\s*(\w+): tear load\s+([0-9.]+) N, work\s+[0-9.na]+ J/m, path\s+([0-9.na]+) deg", stdout, re.MULTILINE)}
+    assert set(found) == {"aligned", "structured30"}, stdout
+    assert found["aligned"][1] == pytest.approx(90.0, abs=1.0) and "torn through" in stdout
+    assert abs(found["structured30"][1] - 90.0) > 10.0
+    assert found["structured30"][0] < found["aligned"][0]
+    _png(out / "tear.png")
+
+
+CHECKS = {"demo_tear": check_tear, "demo_scatter": check_scatter, "demo_weak_form": check_weak_form, "demo_explicit_loop": check_explicit_loop,
           "demo_impact": check_impact, "demo_static": check_static, "demo_fibril": check_fibril,
           "demo_smith": check_smith, "demo_ballistic_limit": check_ballistic_limit}

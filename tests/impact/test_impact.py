@@ -372,7 +372,7 @@ def test_a_finer_quadrature_rule_runs_the_same_impact(tmp_path):
     assert runs[4]["residual_velocity"] == pytest.approx(runs[2]["residual_velocity"], rel=0.01)
     assert runs[2]["v0"] - runs[2]["residual_velocity"] > 0.5         # the fabric was hit
     assert runs[4]["energy_error"] < 0.01
-    with pytest.raises(SceneError, match=r"mesh.kind = 'triangles': must be one of \['graded', 'uniform', 'aligned'\]"):
+    with pytest.raises(SceneError, match=r"mesh.kind = 'triangles': must be one of \['graded', 'uniform', 'aligned', 'structured', 'file'\]"):
         tiny(["mesh.kind=triangles"])
 
 
