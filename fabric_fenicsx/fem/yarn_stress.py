@@ -16,9 +16,9 @@ import numpy as np
 
 from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
-from fabric_fenicsx.fem.tension_field import RelaxStats, relaxed_strains
+from fabric_fenicsx.fem.tension_field import ForceFreeCurves, RelaxStats, relaxed_strains
 from fabric_fenicsx.surrogate.kernels import yarn_stress as yarn_stress_kernel
-from fabric_fenicsx.surrogate.table import lambda_tangent, symmetric_eigmax
+from fabric_fenicsx.surrogate.table import Surrogate, lambda_tangent, symmetric_eigmax
 
 __all__ = ["YarnStress", "straight_yarn_modulus", "WAVE_MODULUS_MARGIN"]
 
@@ -90,6 +90,9 @@ class YarnStress:
         self.below_table = 0
         self.slack_tension = 0
         self.relax_stats = RelaxStats()
+        # the force-free curves of a table (stand-ins of the surrogate and None: every wrinkled
+        # point searches)
+        self.curves = ForceFreeCurves(surrogate) if isinstance(surrogate, Surrogate) else None
         self.E_lo, self.E_hi = surrogate.E_table
         self.mu_crit = self.scale = None
         if laws is not None:
@@ -109,7 +112,7 @@ class YarnStress:
         (tension field, :mod:`fabric_fenicsx.fem.tension_field`); every other strain as given.
         ``guess``: where the force-free searches start (the last step's relaxed strains)."""
         c1, c2 = self._clip(E1), self._clip(E2)
-        r1, r2 = relaxed_strains(self.sur, c1, c2, a1, a2, self.relax_stats, guess)
+        r1, r2 = relaxed_strains(self.sur, c1, c2, a1, a2, self.relax_stats, guess, self.curves)
         return np.where(r1 != c1, r1, E1), np.where(r2 != c2, r2, E2)
 
     def _intact(self, E1, E2, relaxed=None):
