@@ -18,7 +18,7 @@ from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
 from fabric_fenicsx.fem.tension_field import ForceFreeCurves, RelaxStats, relaxed_strains
 from fabric_fenicsx.surrogate.kernels import yarn_stress as yarn_stress_kernel
-from fabric_fenicsx.surrogate.table import Surrogate, lambda_tangent, symmetric_eigmax
+from fabric_fenicsx.surrogate.table import lambda_tangent, symmetric_eigmax
 
 __all__ = ["YarnStress", "straight_yarn_modulus", "WAVE_MODULUS_MARGIN"]
 
@@ -90,9 +90,10 @@ class YarnStress:
         self.below_table = 0
         self.slack_tension = 0
         self.relax_stats = RelaxStats()
-        # the force-free curves of a table (stand-ins of the surrogate and None: every wrinkled
-        # point searches)
-        self.curves = ForceFreeCurves(surrogate) if isinstance(surrogate, Surrogate) else None
+        # None: every wrinkled point searches its force-free strain (the default: the curves
+        # change the answers by more than round-off, docs/demo.md, "2026-12-05"); or the
+        # ForceFreeCurves of the surrogate (a Surrogate table, not a stand-in) to read them there
+        self.curves: ForceFreeCurves | None = None
         self.E_lo, self.E_hi = surrogate.E_table
         self.mu_crit = self.scale = None
         if laws is not None:
