@@ -19,6 +19,8 @@ Where both yarns are equally intact (r = alpha_min / alpha_max = 1: the surrogat
 forces scaled by alpha) E_j* depends on E_i alone: :class:`ForceFreeCurves` tabulates it per yarn,
 built segment by segment where the run needs it and checked against the search (its own
 tolerance, :data:`CURVE_TOL`); the other points, and intervals that failed the check, search.
+The membrane's adapter searches by default (``YarnStress.curves``; why: docs/demo.md,
+"2026-12-05: damage skip and tension-field table").
 """
 from __future__ import annotations
 
