@@ -34,13 +34,16 @@ from fabric_fenicsx.surrogate.kernels.interp import ROOT_FOUND, ROOT_NONE
 
 __all__ = ["relaxed_strains", "RelaxStats", "ForceFreeCurves", "CURVE_TOL", "CURVE_INTERVALS"]
 
-CURVE_TOL = 1e-9
+CURVE_TOL = 1e-11
 """Largest difference in strain between the curve and the search's root (Newton to 1e-15) at an
-interval's check points (1/4, 1/2, 3/4) for the interval to be used: 1e-9 of strain moves P_i by
-at most 1e-9 x |dP_i/dE_j| (below 0.01 N/m), five orders below the table's own interpolation
-error (485 N/m, docs/surrogate.md)."""
-CURVE_INTERVALS = 32
-"""Curve intervals per table cell of the crossing yarn's strain (h / 32 = 6.25e-5 at h = 0.002)."""
+interval's check points (1/4, 1/2, 3/4) for the interval to be used: 1e-11 of strain moves P_i
+by about 1e-11 x |dP_i/dE_j| (1e-5 N/m), seven orders below the table's own interpolation error
+(485 N/m, docs/surrogate.md). With 1e-9 the contact force of Y90 moved by 9e-5 of its peak in
+the first 0.3 ms, with 1e-11 by 1e-7 (docs/demo.md, "2026-12-05")."""
+CURVE_INTERVALS = 128
+"""Curve intervals per table cell of the crossing yarn's strain (h / 128 = 1.56e-5 at h = 0.002):
+the Hermite error falls 16 x per halving; 94 % of the intervals meet CURVE_TOL, the others hold
+a kink of the table."""
 
 
 @dataclass
@@ -75,8 +78,8 @@ class ForceFreeCurves:
     table), built one table cell (a segment) at a time when a point first needs it: the nodes
     are the search's roots, and each interval is checked at 1/4, 1/2 and 3/4 against the search;
     an interval off by more than ``tol`` (a kink of the Catmull-Rom table inside it, or no root)
-    is not used: its points search (:func:`relaxed_strains`). Building a segment costs 129
-    searches per yarn (about a millisecond with its tiles built)."""
+    is not used: its points search (:func:`relaxed_strains`). Building a segment costs
+    4 CURVE_INTERVALS + 1 searches per yarn (a few milliseconds with its tiles built)."""
 
     def __init__(self, surrogate, intervals: int = CURVE_INTERVALS, tol: float = CURVE_TOL):
         self.sur, self.m, self.tol = surrogate, int(intervals), float(tol)
