@@ -31,12 +31,14 @@ import fabric_fenicsx.impact.removal as removal
 import fabric_fenicsx.impact.simulation as simulation
 import fabric_fenicsx.surrogate.kernels.damage as damage_kernel
 import fabric_fenicsx.surrogate.kernels.interp as interp_kernel
+import fabric_fenicsx.surrogate.kernels.tension_field as curve_kernel
 import fabric_fenicsx.surrogate.kernels.yarn_stress as yarn_stress_kernel
 from bench_impact import SCENE, SETTINGS
 from fabric_fenicsx.impact.scene import load_scene
 
 KERNELS = [
     (interp_kernel, "zero_force_strain", "tension field: force-free strain searches"),
+    (curve_kernel, "relax_on_curve", "tension field: force-free strains from the curves"),
     (interp_kernel, "lookup", "surrogate look-up"),
     (interp_kernel, "lookup_derivatives", "surrogate look-up with slopes (dt checks)"),
     (interp_kernel, "prepare_inputs", "surrogate input checks"),

@@ -16,7 +16,7 @@ import numpy as np
 
 from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
-from fabric_fenicsx.fem.tension_field import RelaxStats, relaxed_strains
+from fabric_fenicsx.fem.tension_field import ForceFreeCurves, RelaxStats, relaxed_strains
 from fabric_fenicsx.surrogate.kernels import yarn_stress as yarn_stress_kernel
 from fabric_fenicsx.surrogate.table import lambda_tangent, symmetric_eigmax
 
@@ -90,6 +90,10 @@ class YarnStress:
         self.below_table = 0
         self.slack_tension = 0
         self.relax_stats = RelaxStats()
+        # None: every wrinkled point searches its force-free strain (the default: the curves
+        # change the answers by more than round-off, docs/demo.md, "2026-12-05"); or the
+        # ForceFreeCurves of the surrogate (a Surrogate table, not a stand-in) to read them there
+        self.curves: ForceFreeCurves | None = None
         self.E_lo, self.E_hi = surrogate.E_table
         self.mu_crit = self.scale = None
         self.damage_drive = None
@@ -122,7 +126,7 @@ class YarnStress:
         (tension field, :mod:`fabric_fenicsx.fem.tension_field`); every other strain as given.
         ``guess``: where the force-free searches start (the last step's relaxed strains)."""
         c1, c2 = self._clip(E1), self._clip(E2)
-        r1, r2 = relaxed_strains(self.sur, c1, c2, a1, a2, self.relax_stats, guess)
+        r1, r2 = relaxed_strains(self.sur, c1, c2, a1, a2, self.relax_stats, guess, self.curves)
         return np.where(r1 != c1, r1, E1), np.where(r2 != c2, r2, E2)
 
     def _intact(self, E1, E2, relaxed=None):

@@ -4,7 +4,7 @@ strain cycle (they are the gradient of an energy)."""
 import numpy as np
 import pytest
 
-from fabric_fenicsx.fem.tension_field import RelaxStats, relaxed_strains
+from fabric_fenicsx.fem.tension_field import CURVE_TOL, ForceFreeCurves, RelaxStats, relaxed_strains
 from fabric_fenicsx.fem.yarn_stress import YarnStress
 from fabric_fenicsx.surrogate.kernels.interp import ROOT_FOUND, ROOT_NONE, ROOT_TENSION
 
@@ -135,3 +135,31 @@ def test_zero_force_strain_of_the_surrogate(coarse_surrogate, alpha):
     assert np.all(status == ROOT_NONE) and np.array_equal(x, lo)
     x, status = sur.zero_force_strain(2, E1, np.full(n, 0.001), np.full(n, 0.01), a1, a2)
     assert np.all(status == ROOT_TENSION) and np.all(x == 0.001)
+
+
+def test_force_free_curves_give_the_searched_strains_within_their_tolerance(coarse_surrogate):
+    """The tabulated force-free strains of the intact layer (r = 1, intact or equally damaged
+    yarns) against the per-point search (Newton to 1e-15): within the curve's tolerance (checked
+    at three points per interval, so allowed twice that in between), most of the curve in use,
+    the same points relaxed; points with r < 1 are searched, so their strains are the search's
+    bits."""
+    sur = coarse_surrogate
+    rng = np.random.default_rng(7)
+    n = 4000
+    E1, E2 = rng.uniform(-0.04, 0.05, n), rng.uniform(-0.04, 0.05, n)
+    a1 = np.where(rng.random(n) < 0.5, 1.0, rng.uniform(0.3, 1.0, n))
+    a2 = np.where(rng.random(n) < 0.6, a1, rng.uniform(0.3, 1.0, n))   # r = 1 and r < 1
+    curves = ForceFreeCurves(sur)
+    searched, stats = relaxed_strains(sur, E1, E2, a1, a2, RelaxStats()), RelaxStats()
+    tabulated = relaxed_strains(sur, E1, E2, a1, a2, stats, curves=curves)
+    r1 = a1 == a2
+    for j in range(2):
+        assert np.abs(tabulated[j] - searched[j])[r1].max() <= 2 * CURVE_TOL
+        np.testing.assert_array_equal(tabulated[j][~r1], searched[j][~r1])
+        assert np.count_nonzero(tabulated[j][r1] != (E1, E2)[j][r1]) > 200
+        built = np.repeat(curves.built[j], curves.m)
+        assert curves.ok[j][built].mean() > 0.8
+    assert stats.relaxed == sum(np.count_nonzero(s != e) for s, e in zip(searched, (E1, E2)))
+    # the stresses the membrane gets: within 2 CURVE_TOL x |dP_i/dE_j|
+    P = [sur.lookup(*E, a1, a2, ("P1", "P2")) for E in (searched, tabulated)]
+    assert np.abs(P[0] - P[1]).max() < 1e-8 * np.abs(P[0]).max()

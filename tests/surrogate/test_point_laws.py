@@ -70,3 +70,70 @@ def test_a_law_outside_the_tables_damage_range_is_refused(coarse_surrogate, wide
             wide.update(one, one, np.ones(1), np.ones(1), **laws)
     with pytest.raises(ValueError, match="damage_range"):
         coarse_surrogate.update(one, one, np.ones(1), np.ones(1), critical_stretch=(1.02, 1.03))
+
+
+def _kernel_update(sur, E1, E2, hist, mu_crit, band, skips=True):
+    """damage_kernel.update of the points straight (tiles built by ``sur.update`` first): with the
+    table's cell-level skips (its safe map, and each cell's top stretch against the point's own
+    mu_crit), or, ``skips`` False, the full path where every point forms its target at the
+    history and iterates where that target lies below it. Returns (P, alpha, status, counts)."""
+    from fabric_fenicsx.surrogate.kernels import damage as damage_kernel
+    from fabric_fenicsx.material.unitcell import ALPHA_BROKEN
+    from fabric_fenicsx.surrogate.table import MU_MARGIN
+    table = list(sur._table())
+    top = (sur._mu_top["intact"], sur._mu_top["damaged"])
+    if not skips:
+        table[4], table[5] = np.zeros_like(table[4]), np.zeros_like(table[5])
+        top = None
+    n = E1.size
+    P, alpha, residual, status = np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2)), np.empty(n, np.int8)
+    counts = damage_kernel.update(E1, E2, hist[:, 0].copy(), hist[:, 1].copy(), tuple(table),
+                                  sur._spec(("P1", "P2")), sur._spec(("mu1", "mu2")), sur._law,
+                                  mu_crit, band, 2 * ALPHA_BROKEN, 1e-10, P, alpha, residual, status,
+                                  top, MU_MARGIN)
+    assert counts[1] == 0       # every tile was there
+    return P, alpha, status, counts
+
+
+def test_points_skipped_where_nothing_can_change_get_the_bits_of_the_full_path(wide):
+    """Eq. 2-25 (alpha_i = min(alpha_i^hist, alpha(mu_i(E, alpha)))) is not iterated where the
+    table cell cannot reach the point's own mu_crit, nor where the target at the history is the
+    history (unloading, or the strains the history was made at). Over random states, each point
+    with its own critical stretch and softening scale per yarn (a strength scatter), the skipped
+    path must give the bits of the full path: intact and damaged histories (r = alpha_min /
+    alpha_max below 1 couples the yarns' stretches), broken yarns, growing damage, unloading,
+    and states at exactly the strains their history was made at."""
+    rng = np.random.default_rng(43)
+    n = 1500
+    E1 = rng.uniform(-0.02, 0.075, n)
+    E2 = rng.uniform(-0.02, 0.06, n)
+    mu_crit = rng.uniform(1.012, 1.04, (n, 2))
+    scale = rng.uniform(0.7, 1.3, (n, 2))
+    kind = rng.integers(0, 5, n)   # intact, random damage, one yarn broken, equal damage, one yarn only
+    hist = np.ones((n, 2))
+    hist[kind == 1] = rng.uniform(0.02, 1.0, (np.count_nonzero(kind == 1), 2))
+    hist[kind == 2, rng.integers(0, 2)] = 0.0
+    hist[kind == 3] = rng.uniform(0.1, 1.0, (np.count_nonzero(kind == 3), 1))
+    hist[kind == 4, 0] = rng.uniform(0.05, 1.0, np.count_nonzero(kind == 4))
+    laws = dict(critical_stretch=tuple(mu_crit.T), softening_scale=tuple(scale.T))
+    # histories made by the loading itself: at 1.1 x the strains (then unloaded to E) and at E
+    made = np.stack(wide.update(1.1 * E1, 1.1 * E2, hist[:, 0], hist[:, 1], **laws)[2:], axis=1)
+    again = np.stack(wide.update(E1, E2, hist[:, 0], hist[:, 1], **laws)[2:], axis=1)
+    E1s, E2s = np.tile(E1, 3), np.tile(E2, 3)
+    states = np.concatenate((hist, made, again))
+    mu_crits, scales = np.tile(mu_crit, (3, 1)), np.tile(scale, (3, 1))
+    wide.update(E1s, E2s, states[:, 0], states[:, 1], critical_stretch=tuple(mu_crits.T),
+                softening_scale=tuple(scales.T))   # every tile the kernel needs
+    band = scales.copy()
+    skipped = _kernel_update(wide, E1s, E2s, states, mu_crits, band)
+    full = _kernel_update(wide, E1s, E2s, states, mu_crits, band, skips=False)
+    for a, b in zip(skipped[:3], full[:3]):
+        np.testing.assert_array_equal(a, b)
+    assert skipped[3][0] == full[3][0] > 100            # damage grew at many points
+    alpha = skipped[1]
+    unchanged = np.all(alpha == states, axis=1)
+    assert np.count_nonzero(unchanged[n:] & np.any(states[n:] < 1.0, axis=1)) > 100  # unloaded, at E
+    assert np.count_nonzero(~unchanged) > 100
+    # the skip matters: many points are in cells that cannot reach their mu_crit
+    flag = wide._values(E1s, E2s, states[:, 0], states[:, 1], ("P1",))[1]
+    assert 0.2 < flag.mean() < 0.9
