@@ -16,10 +16,15 @@
   the session knows its tests (:class:`BackgroundDemos`); ``test_demo_runs`` waits for them.
 * The checkout's root is put on ``sys.path`` (first, unless it is there already), so the test tools import as ``tests.tools``
   (:mod:`tests.tools.faults`, ...) however pytest is started.
+* Ctrl-C reaches the commands the tests start even when pytest itself was started with SIGINT
+  ignored (a shell's background job without job control): an ignored SIGINT is inherited by
+  every child, whose Python then never raises KeyboardInterrupt, and the interrupt tests would
+  measure the runner instead of the commands.
 """
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -27,6 +32,9 @@ import time
 from pathlib import Path
 
 import pytest
+
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 if str(Path(__file__).resolve().parents[1]) not in sys.path:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
