@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
 def _run(args, plan, setup, out: Path) -> int:
     import numpy as np
 
+    from fabric_fenicsx.impact.trouble import STEP_ERRORS
     from fabric_fenicsx.material.fabric import zylon_as
     from fabric_fenicsx.material.scatter import StrengthScatter
     from fabric_fenicsx.studies import tear, tear_report
@@ -99,7 +100,9 @@ def _run(args, plan, setup, out: Path) -> int:
     notch = setup.notch
     table = out / "tear.csv"
     recorded = out / "tear-setup.json"
-    wanted = json.dumps(tear.setup_dict(setup), sort_keys=True)
+    mesh_file = getattr(args, "mesh_file", None)
+    wanted = json.dumps({**tear.setup_dict(setup), "mesh_file": str(Path(mesh_file).resolve()) if mesh_file else None},
+                        sort_keys=True)
     if table.exists() and recorded.exists() and recorded.read_text() != wanted:
         print(f"{PROG}: {out} holds pulls of another setup ({recorded.read_text()}); give another --out",
               file=sys.stderr)
@@ -122,7 +125,7 @@ def _run(args, plan, setup, out: Path) -> int:
         if not todo:
             say(f"tear: {family} {h * 1e3:g} mm: reused from {table}")
             continue
-        test = tear.TearTest(fabric, family, h, setup, mesh_file=getattr(args, "mesh_file", None))
+        test = tear.TearTest(fabric, family, h, setup, mesh_file=mesh_file)
         laws = {s: None if s < 0 else test.laws(StrengthScatter(args.scatter, seed=s)) for s in todo}
         ranges = [StrengthScatter(args.scatter).damage_range(fabric, *law) for law in laws.values() if law]
         if surrogate is None or ranges:
@@ -131,7 +134,12 @@ def _run(args, plan, setup, out: Path) -> int:
                                np.max([r.mu_complete_max for r in ranges], axis=0)) if ranges else None)
             surrogate = Surrogate(fabric, progress=False, workers=1, damage_range=rng)
         for seed in todo:
-            r = test.pull(surrogate, laws[seed], progress=lambda line: say(f"  {family} {h * 1e3:g} mm: {line}"))
+            try:
+                r = test.pull(surrogate, laws[seed], progress=lambda line: say(f"  {family} {h * 1e3:g} mm: {line}"))
+            except STEP_ERRORS as err:
+                print(f"{PROG}: stopped: {family} {h * 1e3:g} mm, seed {seed}: {type(err).__name__}: {err}; the "
+                      f"pulls in {table} are kept", file=sys.stderr)
+                return 1
             r["seed"] = seed
             cells = r.pop("cells")
             r.pop("history")

@@ -186,8 +186,8 @@ def work_per_length(length: np.ndarray, energy: np.ndarray) -> float:
 
 class TearTest:
     """A panel of ``fabric`` on one mesh (``family``, cell size ``h``), pulled by :meth:`pull`
-    (once per strength-scatter seed if wanted: each pull starts from the reference state). Serial
-    One rank only (the tear is traced from cell to cell)."""
+    (once per strength-scatter seed if wanted: each pull starts from the reference state). One
+    rank only (the tear is traced from cell to cell)."""
 
     def __init__(self, fabric, family: str, h: float, setup: TearSetup = TearSetup(), comm=None,
                  mesh_file: str | None = None):
@@ -312,6 +312,11 @@ class TearTest:
                 continue
             dt = cd.stable_dt()
             force = -float(np.sum(cd._f_int[self.fixed_x]))
+            if not math.isfinite(force):
+                raise FloatingPointError(
+                    f"tear test, {self.family} {self.h * 1e3:g} mm: the end force is {force} at t = "
+                    f"{cd.time * 1e6:.2f} us (step {cd.n_steps}, dt {dt:.3e} s); lower dt_safety "
+                    f"({s.dt_safety}) or raise the hourglass control ({s.hourglass})")
             broken = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
             length = self.tear_length(self.tear_cells(broken))
             e = material.energies()
