@@ -94,11 +94,7 @@ def main():
 
         damage_kernel.update = both
         with tempfile.TemporaryDirectory() as out:
-            sim = simulation.ImpactSimulation(scene, out, verbose=False)
-            try:
-                s = sim.run()
-            finally:
-                sim.output.close()
+            s = simulation.run_impact(scene, out, verbose=False)
     n = s["n_steps"] * (calls["calls"] - WARM_UP) / calls["calls"]  # the steps timed, about
     b, t = seconds["before"] / n * 1e3, seconds["today"] / n * 1e3
     print(f"damage update benchmark: {scene.source} at {s['v0']:g} m/s, {s['n_cells']} cells, "

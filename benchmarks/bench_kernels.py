@@ -83,11 +83,7 @@ def main():
     for owner, name, _ in KERNELS:
         timed(seconds, calls, owner, name)
     with tempfile.TemporaryDirectory() as out:
-        sim = simulation.ImpactSimulation(scene, out, verbose=False)
-        try:
-            s = sim.run()
-        finally:
-            sim.output.close()
+        s = simulation.run_impact(scene, out, verbose=False)
     n = s["n_steps"]
     loop = s["wall_time_s"] - s["time_total_s"]["surrogate_tiles"]
     print(f"kernel benchmark: {scene.source} at {s['v0']:g} m/s, {s['n_cells']} cells, {n} steps, "

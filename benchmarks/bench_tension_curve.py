@@ -75,11 +75,7 @@ def run(scene, path):
     yarn_stress.relaxed_strains, tension_field.ForceFreeCurves.build = both, timed_build
     try:
         with tempfile.TemporaryDirectory() as out:
-            sim = simulation.ImpactSimulation(scene, out, verbose=False)
-            try:
-                s = sim.run()
-            finally:
-                sim.output.close()
+            s = simulation.run_impact(scene, out, verbose=False)
             with open(Path(out) / "history.csv") as f:
                 rows = list(csv.DictReader(f))
     finally:

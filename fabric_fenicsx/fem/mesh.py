@@ -402,6 +402,15 @@ class _UnreadableMsh(RuntimeError):
     pass
 
 
+def open_msh(gmsh, path) -> None:
+    """Start gmsh quietly with the mesh file ``path`` merged into a new model (the caller
+    finalizes gmsh, also when this raises)."""
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("fabric_from_file")
+    gmsh.merge(str(path))
+
+
 def _read_msh(path: Path, comm: MPI.Comm):
     """``gmshio.read_from_msh(path, comm, 0, gdim=2)`` as it should be in 0.5.2."""
     import gmsh
@@ -409,11 +418,8 @@ def _read_msh(path: Path, comm: MPI.Comm):
 
     error = None
     if comm.rank == 0:
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
         try:
-            gmsh.model.add("fabric_from_file")
-            gmsh.merge(str(path))
+            open_msh(gmsh, path)
             types, _, _ = gmsh.model.mesh.getElements(2)
             if list(types) != [3]:
                 error = f"2D element types {list(types)} in {path}, expected only 4-node quadrilaterals (3)"

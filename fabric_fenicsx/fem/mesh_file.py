@@ -10,7 +10,7 @@ import numpy as np
 from mpi4py import MPI
 
 from fabric_fenicsx.fem.mesh import (EDGE_NAMES, FABRIC, _min_scaled_jacobian, _quads, _read_msh, _tag_square,
-                                     _UnreadableMsh)
+                                     _UnreadableMsh, open_msh)
 
 __all__ = ["read_square_msh", "square_msh_problem", "free_rectangle"]
 
@@ -51,11 +51,8 @@ def square_msh_problem(path: Path, side: float) -> str:
     cannot read raises gmsh's own exception."""
     import gmsh
 
-    gmsh.initialize(readConfigFiles=False)
-    gmsh.option.setNumber("General.Terminal", 0)
     try:
-        gmsh.model.add("fabric_from_file")
-        gmsh.merge(str(path))
+        open_msh(gmsh, path)
         types, _, _ = gmsh.model.mesh.getElements(2)
         if len(types) == 0:
             return "no 2D cells"
