@@ -23,8 +23,8 @@ from numba import njit
 from petsc4py import PETSc
 
 from fabric_fenicsx.fem.membrane import yarn_directions
-from fabric_fenicsx.impact.removal_log import (REMOVED_CELL_COLUMNS, cell_polygons,
-                                              chords_through_centroid, polygon_centroids,
+from fabric_fenicsx.impact.output import cell_corners
+from fabric_fenicsx.impact.removal_log import (REMOVED_CELL_COLUMNS, chords_through_centroid, polygon_centroids,
                                               removal_records)
 
 __all__ = ["CellRemoval"]
@@ -95,7 +95,7 @@ class CellRemoval:
         material forgets their state."""
         if self._geometry is None:
             m = self.m
-            corners = cell_polygons(m.V, m.n_cells)
+            corners = m.V.tabulate_dof_coordinates()[cell_corners(m.V, m.n_cells), :2]
             centroids = polygon_centroids(corners)
             chords = np.column_stack([chords_through_centroid(corners, d, centroids)
                                       for d in yarn_directions(m.angle)])

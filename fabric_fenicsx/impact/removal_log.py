@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = ["REMOVED_CELL_COLUMNS", "RULES", "BROKEN_BELOW", "FAMILY_STATES", "polygon_centroids",
            "chords_through_centroid", "corner_extents", "family_states", "removal_records",
-           "removal_statistics", "cell_polygons"]
+           "removal_statistics", "polygon_areas"]
 
 RULES = ("deletion", "erosion")
 """The removal rules, in the order of their code in :data:`REMOVED_CELL_COLUMNS`' ``rule``."""
@@ -49,16 +49,13 @@ below this (more than half of the yarn's strength lost): the family states of
 FAMILY_STATES = ("warp_only", "fill_only", "both", "neither")
 """The yarn families broken (alpha_i < :data:`BROKEN_BELOW`) in a removed cell."""
 
-_PERIMETER = {4: np.array([0, 1, 3, 2]), 3: np.array([0, 1, 2])}   # DOLFINx vertex order -> perimeter
 
 
-def cell_polygons(V, n_cells: int) -> np.ndarray:
-    """Reference (x, y) corners of the first ``n_cells`` (owned) cells of the P1 space ``V``, in
-    perimeter order (DOLFINx orders a quadrilateral's vertices as a tensor product), shape
-    (n_cells, n_corners, 2)."""
-    n = V.dofmap.dof_layout.num_dofs
-    nodes = V.dofmap.list.array.reshape(-1, n)[:n_cells][:, _PERIMETER[n]]
-    return V.tabulate_dof_coordinates()[nodes, :2]
+def polygon_areas(corners: np.ndarray) -> np.ndarray:
+    """Areas of simple polygons (corners in perimeter order, either sense), shape (n, k, 2) ->
+    (n,): the shoelace formula."""
+    p, q = corners, np.roll(corners, -1, axis=1)
+    return 0.5 * np.abs((p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1]).sum(axis=1))
 
 
 def polygon_centroids(corners: np.ndarray) -> np.ndarray:

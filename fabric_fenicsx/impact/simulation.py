@@ -351,12 +351,11 @@ class ImpactSimulation:
         mat, cd, removal = self.material, self.cd, self.removal
         delete, erode = removed
         state = mat.state
-        damaged = bool(state.alpha1.min(initial=1.0) < 1.0 or state.alpha2.min(initial=1.0) < 1.0) \
-            if self.scene.material.damage else False
         # how far each yarn family has gone anywhere: 1 - min alpha_i (which breaks first)
         yarn_damage = ({"warp_damage": 1.0 - float(state.alpha1.min(initial=1.0)),
                         "fill_damage": 1.0 - float(state.alpha2.min(initial=1.0))}
                        if self.scene.material.damage else {"warp_damage": 0.0, "fill_damage": 0.0})
+        damaged = yarn_damage["warp_damage"] > 0.0 or yarn_damage["fill_damage"] > 0.0
         z_max, front, moved = removal.node_extremes(self.X, cd.u, self.axis_xy, self.projectile.radius,
                                                     self.state.z + self.projectile.length)
         sums = reduce_named(self.comm, {

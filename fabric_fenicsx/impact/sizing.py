@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fabric_fenicsx.impact.removal_log import polygon_areas
 from fabric_fenicsx.impact.scene import Scene, SceneError
 
 __all__ = ["Estimate", "estimate", "check_size", "free_memory", "BASE_BYTES", "CELL_BYTES",
@@ -129,8 +130,7 @@ def _file_cells(path: str) -> tuple[float, float]:
     x = np.zeros((int(np.max(tags)) + 1, 2))
     x[np.asarray(tags, dtype=np.int64)] = coords.reshape(-1, 3)[:, :2]
     p = x[np.asarray(nodes[0], dtype=np.int64).reshape(-1, 4)]
-    area = 0.5 * np.abs(np.sum(p[..., 0] * np.roll(p[..., 1], -1, axis=1) - np.roll(p[..., 0], -1, axis=1) * p[..., 1],
-                               axis=1))
+    area = polygon_areas(p)
     diagonal = np.maximum(np.linalg.norm(p[:, 2] - p[:, 0], axis=1), np.linalg.norm(p[:, 3] - p[:, 1], axis=1))
     return float(p.shape[0]), float(np.min(area / diagonal))
 

@@ -238,10 +238,9 @@ class TearTest:
         """The driving strains of the yarn-average rule on this mesh (built once)."""
         if getattr(self, "_average", None) is None:
             from fabric_fenicsx.fem.yarn_average import YarnAverage
+            from fabric_fenicsx.impact.removal_log import polygon_areas
 
-            x, y = self.corners[..., 0], self.corners[..., 1]
-            areas = 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1))
-            self._average = YarnAverage(self.centres, areas, (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
+            self._average = YarnAverage(self.centres, polygon_areas(self.corners), (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
                                         self.setup.failure_length, self.comm, self.setup.failure_width)
         return self._average
 
