@@ -80,9 +80,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--grips", default="clamped",
                         help="tear: the pulled edges clamped (every component held) or rollers (free along y)")
     parser.add_argument("--failure", default="thesis",
-                        help="tear: the failure rule, thesis or yarn_average (a candidate: damage driven by the "
-                             "strain averaged along each yarn over --failure-length)")
+                        help="tear: the failure rule: thesis, yarn_crack (a broken yarn tears along the other "
+                             "family with one segment's energy) or yarn_average (damage driven by the strain "
+                             "averaged along each yarn over --failure-length)")
     parser.add_argument("--failure-length", type=float, default=0.0, help="tear: the yarn average's length (m)")
+    parser.add_argument("--slit-cut", default="cells",
+                        help="tear: the slit's cells removed (cells) or only their warp yarns cut (warp)")
     parser.add_argument("--cell-rule", default="weakest",
                         help="strip: how a cell reads the segments it covers, weakest, patch or yarn (default weakest)")
     parser.add_argument("--crack-band", action="store_true",

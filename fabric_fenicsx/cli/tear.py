@@ -70,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         setup = tear.TearSetup(notch=getattr(args, "notch", "edge"), grips=getattr(args, "grips", "clamped"),
                                failure=getattr(args, "failure", "thesis"),
-                               failure_length=getattr(args, "failure_length", 0.0))
+                               failure_length=getattr(args, "failure_length", 0.0),
+                               slit_cut=getattr(args, "slit_cut", "cells"))
     except ValueError as err:
         problems.append(str(err))
     if args.members > 1 and args.scatter not in ("weibull", "fibrils"):
@@ -127,7 +128,7 @@ def _run(args, plan, setup, out: Path) -> int:
             continue
         test = tear.TearTest(fabric, family, h, setup, mesh_file=mesh_file)
         laws = {s: None if s < 0 else test.laws(StrengthScatter(args.scatter, seed=s)) for s in todo}
-        ranges = [StrengthScatter(args.scatter).damage_range(fabric, *law) for law in laws.values() if law]
+        ranges = [r for r in (test.damage_range(law) for law in laws.values()) if r is not None]
         if surrogate is None or ranges:
             from fabric_fenicsx.material.scatter import DamageRange
             rng = (DamageRange(np.min([r.mu_crit_min for r in ranges], axis=0),

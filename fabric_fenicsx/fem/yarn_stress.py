@@ -100,6 +100,10 @@ class YarnStress:
         """None (the thesis's rule: a point's damage follows its own strains) or a callable
         (E1, E2, live) -> (Ebar1, Ebar2) over every point giving the strains that drive the
         damage (:class:`~fabric_fenicsx.fem.yarn_average.YarnAverage`)."""
+        self.failure = None
+        """None (the thesis's rule: every point damages by its own law) or a rule that hands the
+        points their damage laws and accepts or takes back each new damage
+        (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`: ``laws``, ``admit``)."""
         if laws is not None:
             mu_crit, scale = (np.asarray(x, float) for x in laws)
             if mu_crit.shape != (n, 2) or scale.shape != (n, 2):
@@ -225,7 +229,15 @@ class YarnStress:
         if self.damage:
             laws = ({} if self.mu_crit is None else
                     {"critical_stretch": self.mu_crit[:, sel], "softening_scale": self.scale[:, sel]})
-            if self.damage_drive is None:
+            if self.failure is not None:
+                laws = self.failure.laws(idx)
+                p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
+                (b1, b2), redo = self.failure.admit(self.sur, idx, r1, r2, np.stack((a1h[sel], a2h[sel])),
+                                                    np.stack((b1, b2)))
+                if redo.size:   # the stresses at the damage kept
+                    p1, p2 = p1.copy(), p2.copy()
+                    p1[redo], p2[redo], _, _ = self.sur.evaluate(r1[redo], r2[redo], b1[redo], b2[redo])
+            elif self.damage_drive is None:
                 p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
             else:   # the damage from the driving strains, the stresses from the point's own
                 d1, d2 = self._driving_strains(r1, r2)

@@ -15,7 +15,7 @@ from fabric_fenicsx.material.fabric import Fabric, zylon_as
 from fabric_fenicsx.material.scatter import StrengthScatter, cell_laws
 
 __all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile", "quadrature_degree",
-           "build_strength_field"]
+           "build_strength_field", "FAILURE_RULES", "build_failure_rule"]
 
 EDGE_TAGS = {"left": LEFT, "right": RIGHT, "bottom": BOTTOM, "top": TOP}
 """Scene edge names -> facet tags of the fabric meshes."""
@@ -107,3 +107,40 @@ def build_strength_field(scene: Scene, fabric: Fabric, membrane, comm):
     hi = [comm.allreduce(float(x), op=MPI.MAX) for x in local.mu_complete_max]
     return scatter, (mu_crit, scale), type(local)(np.array(lo), np.array(hi))
 
+
+
+def _yarn_crack(scene: Scene, fabric: Fabric, membrane, laws, comm):
+    """The yarn-crack rule (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`) on the membrane's
+    cells, over the points' segment laws ``laws`` (None: the fabric's)."""
+    from fabric_fenicsx.fem.membrane import yarn_directions
+    from fabric_fenicsx.fem.yarn_crack import YarnCrack
+
+    if comm.size > 1:
+        raise SceneError("material.failure = 'yarn_crack' runs on one rank (its cracks are not exchanged "
+                         "between ranks): run without mpirun, or with material.failure = 'thesis'")
+    if not scene.material.damage:
+        return None
+    X = membrane.V.tabulate_dof_coordinates()[:, :2]
+    corners = X[cell_corners(membrane.V, membrane.n_cells)]
+    return YarnCrack.on_cells(corners, yarn_directions(membrane.angle), fabric, membrane.n_points_per_cell,
+                              laws, comm)
+
+
+FAILURE_RULES = {"thesis": None, "yarn_crack": _yarn_crack}
+"""``material.failure`` -> a builder (scene, fabric, membrane, laws, comm) -> the rule that the
+material's ``failure`` takes (None: each point's own law, the thesis's rule)."""
+
+
+def build_failure_rule(scene: Scene, fabric: Fabric, membrane, laws, damage_range, comm):
+    """(rule, damage range): the scene's failure rule (``material.failure``, :data:`FAILURE_RULES`)
+    and the damage range the surrogate's table must hold for it and the strength field
+    (``damage_range``, None: the fabric's own law)."""
+    builder = FAILURE_RULES[scene.material.failure]
+    rule = builder(scene, fabric, membrane, laws, comm) if builder is not None else None
+    if rule is None:
+        return None, damage_range
+    own = rule.damage_range()
+    if damage_range is None:
+        return rule, own
+    return rule, type(own)(np.minimum(own.mu_crit_min, damage_range.mu_crit_min),
+                           np.maximum(own.mu_complete_max, damage_range.mu_complete_max))

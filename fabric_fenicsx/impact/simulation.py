@@ -32,9 +32,9 @@ from fabric_fenicsx.impact import trouble
 from fabric_fenicsx.impact.ledger import EnergyLedger, reduce_named
 from fabric_fenicsx.impact.pictures import FabricPictures
 from fabric_fenicsx.impact.removal import CellRemoval
-from fabric_fenicsx.impact.scene import SCATTER_FIELDS, Scene
+from fabric_fenicsx.impact.scene import SCATTER_FIELDS, Scene, SceneError
 from fabric_fenicsx.impact.setup import (EDGE_TAGS, build_fabric, build_mesh, build_projectile,
-                                         build_strength_field, build_terms,
+                                         build_failure_rule, build_strength_field, build_terms,
                                          quadrature_degree)
 from fabric_fenicsx.impact.summary import build_summary
 from fabric_fenicsx.impact.timestep import (DtChange, check_due, damping_coefficient, highest_frequency,
@@ -137,11 +137,17 @@ class ImpactSimulation:
         self.beta = damping_coefficient(self.xi, self.omega_cell)
         self.xi_mesh = 0.5 * self.beta * self.omega_straight   # its damping ratio at this mesh's highest frequency
         self.scatter, self.laws, self.damage_range = build_strength_field(sc, self.fabric, m, comm)
+        self.failure, self.damage_range = build_failure_rule(sc, self.fabric, m, self.laws, self.damage_range, comm)
         if surrogate is None and material is None:
             surrogate = self.default_surrogate()
         self.surrogate = surrogate
         self.material = (material or self.default_material)(m)
         self._check_material()
+        if self.failure is not None:
+            if not hasattr(self.material, "failure"):
+                raise SceneError(f"material.failure = {sc.material.failure!r} needs a material with a "
+                                 f"'failure' hook (YarnStress); {type(self.material).__name__} has none")
+            self.material.failure = self.failure
         for term in m.terms:
             if term.follows_integrity:
                 term.follow(lambda: self.material.state, self.material.tension)

@@ -113,6 +113,8 @@ def build_summary(sim, end_reason: str, n_steps: int, dt: float, wall: float,
                     "xi_mesh": sim.xi_mesh,
                     "share_of_absorbed": b.viscous / absorbed if absorbed > 0 else 0.0},
         "scatter": _scatter_section(sim),
+        "failure": {"rule": sc.material.failure,
+                    **({"cracks": sim.failure.summary()} if getattr(sim, "failure", None) is not None else {})},
         "settings": sc.to_dict(),
         **code_fingerprint(),
     }

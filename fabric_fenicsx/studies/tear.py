@@ -4,7 +4,8 @@ A square panel (default 60 mm, warp along x) is clamped along its left edge; its
 moves at a constant speed along x (default 5 m/s, a strain rate of 83 /s, as the strip test's
 100 /s), so that the warp carries the load. A slit cuts the warp yarns along y at x = 0: from the
 bottom edge (``notch = "edge"``) or about the centre (``"centre"``), made by removing the cells
-it crosses. The membrane, the reduced element with its hourglass control, the surrogate, the
+it crosses (``slit_cut = "cells"``) or by cutting their warp yarns only (``"warp"``: alpha1 = 0,
+the fill yarns along the slit kept, a crack band as a broken warp leaves it). The membrane, the reduced element with its hourglass control, the surrogate, the
 damping and the removal rules (deletion when both yarns are broken, erosion at
 ``erosion_strain``) are the impact scenes'.
 
@@ -36,6 +37,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack")
+
 __all__ = ["TearSetup", "parse_family", "slit_cells", "path_angle", "work_per_length", "TearTest"]
 
 BROKEN_ALPHA = 0.5
@@ -55,17 +58,20 @@ class TearSetup:
     dt_safety: float = 0.8
     erosion_strain: float = 1.0  # material.erosion_strain
     grips: str = "clamped"       # "clamped" (every component held) | "rollers" (the edges free along y)
-    failure: str = "thesis"      # "thesis" | "yarn_average" (fabric_fenicsx.fem.yarn_average)
+    failure: str = "thesis"      # "thesis" | "yarn_average" | "yarn_crack" (fabric_fenicsx.fem.yarn_*)
     failure_length: float = 0.0  # m: the yarn average's length (yarn_average only)
     failure_width: float = 0.0   # m: the yarn average's width across the yarn (0: one cell)
+    slit_cut: str = "cells"      # "cells" (the slit's cells removed) | "warp" (their warp cut, alpha1 = 0)
 
     def __post_init__(self) -> None:
         if self.grips not in ("clamped", "rollers"):
             raise ValueError(f"grips = {self.grips!r}: must be 'clamped' or 'rollers'")
-        if self.failure not in ("thesis", "yarn_average"):
-            raise ValueError(f"failure = {self.failure!r}: must be 'thesis' or 'yarn_average'")
+        if self.failure not in FAILURE_RULES:
+            raise ValueError(f"failure = {self.failure!r}: must be one of {', '.join(FAILURE_RULES)}")
         if self.failure == "yarn_average" and not self.failure_length > 0:
             raise ValueError(f"failure_length = {self.failure_length!r}: the yarn average needs a length > 0 m")
+        if self.slit_cut not in ("cells", "warp"):
+            raise ValueError(f"slit_cut = {self.slit_cut!r}: must be 'cells' or 'warp'")
         if self.notch not in ("edge", "centre"):
             raise ValueError(f"notch = {self.notch!r}: must be 'edge' or 'centre'")
         for name in ("side", "slit", "speed", "damping", "hourglass", "dt_safety", "erosion_strain"):
@@ -244,6 +250,30 @@ class TearTest:
                                         self.setup.failure_length, self.comm, self.setup.failure_width)
         return self._average
 
+    def crack_rule(self, laws=None):
+        """The yarn-crack rule (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`) on this mesh with
+        the cell laws ``laws`` (None: the fabric's), the slit given as a crack of the warp."""
+        from fabric_fenicsx.fem.yarn_crack import YarnCrack
+
+        rule = YarnCrack.on_cells(self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])), self.fabric,
+                                  self.membrane.n_points_per_cell, laws, self.comm)
+        rule.add_crack(self.slit, 0, 0.0)
+        return rule
+
+    def damage_range(self, laws=None):
+        """The damage range (:class:`~fabric_fenicsx.material.scatter.DamageRange`) the surrogate
+        needs for this setup's failure rule with ``laws``, or None (the fabric's own law)."""
+        if self.setup.failure == "yarn_crack":
+            return self.crack_rule(laws).damage_range()
+        if laws is None:
+            return None
+        from fabric_fenicsx.material.scatter import DamageRange, failure_stretch
+
+        mu_crit, scale = laws
+        return DamageRange(np.minimum([self.fabric.warp.mu_crit, self.fabric.fill.mu_crit], mu_crit.min(axis=0)),
+                           np.array([failure_stretch(self.fabric.damage, mu_crit[:, i], scale[:, i]).max()
+                                     for i in range(2)]))
+
     def laws(self, scatter):
         """The cell laws (mu_crit, scale), each (n_points, 2), of ``scatter`` on this mesh."""
         from fabric_fenicsx.material.scatter import cell_laws
@@ -284,11 +314,16 @@ class TearTest:
                               straight_modulus=self.k_straight, laws=laws)
         if s.failure == "yarn_average":
             material.damage_drive = self._yarn_average()
+        if s.failure == "yarn_crack":
+            material.failure = self.crack_rule(laws)
         for term in m.terms:
             if term.follows_integrity:
                 term.follow(lambda: material.state, material.tension)
         removal = CellRemoval(m, material, np.zeros(0, dtype=np.int64), s.erosion_strain)
-        removal.remove(self.slit, np.zeros(0, dtype=np.int64))
+        if s.slit_cut == "warp":   # the slit's cells keep their fill yarns: a crack band of cut warp
+            material.alpha1[(self.slit[:, None] * m.n_points_per_cell + np.arange(m.n_points_per_cell)).ravel()] = 0.0
+        else:
+            removal.remove(self.slit, np.zeros(0, dtype=np.int64))
         removal.deleted_cells[:] = False          # the slit is not a failure
         m.share_live_cells()
         cd = CentralDifference(m, material, self.fabric.areal_density,

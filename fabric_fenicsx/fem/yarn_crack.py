@@ -1,0 +1,219 @@
+"""A failure rule that follows the yarns: a broken yarn family opens a crack along the other
+family, through the cells that line crosses, with the energy of one yarn segment per yarn cut.
+
+The thesis's rule (Eq. 2-25 at every point) softens whichever cells strain most, so that a tear
+runs along the rows of cells and takes the energy of one row of cells (docs/tear_test.md). In a
+woven fabric a warp yarn breaks across its own axis and the break runs to the next warp yarn at
+the same place: the tear of the warp runs along the fill, and the work it takes per yarn is that
+of one segment h0 (the yarn spacing, on which the fibril statistics of Eq. 2-25 are defined).
+This rule gives the cells both, per yarn family i (warp 0, fill 1), with direction d_i:
+
+* **Where a yarn may soften** (crack tracking, after Cervera and Chiumenti, Comput. Methods
+  Appl. Mech. Eng. 196 (2006) 304-320, with the crack's direction that of the other yarns):
+  every cracked cell carries the position ``line`` = x . d_i of its crack, a line along d_j. A
+  cell whose yarn i would start to damage is admitted to soften if the line of a cracked cell
+  within ``exclusion`` of its own size crosses it (the crack's tip runs on along the line); it is
+  held intact if cracked cells are near but none of their lines crosses it (it lies beside the
+  crack, which runs along the yarns, not along the cells); with no cracked cell near it starts a
+  crack of its own on the line through its centre (a root).
+* **How much energy a cell takes** (:mod:`fabric_fenicsx.material.crack_energy`): a cell at a
+  crack's tip breaks with the work of one segment per yarn: its law is that of equal energy over
+  its extent c along d_i, ratio h0 / c. A root keeps the segment's own law (its strength: where
+  no crack concentrates the strain, a cell of any size is as strong as its yarns). The slit of a
+  test, or any crack a scene starts with, is given by :meth:`YarnCrack.add_crack`.
+
+The rule sits between the surrogate's damage update and the stresses (``YarnStress.failure``):
+it hands the points their laws (:meth:`YarnCrack.laws`), then accepts or takes back each new
+damage (:meth:`YarnCrack.admit`). Removal (deletion, erosion) is unchanged. One rank: the cracks
+near a cell on another rank are not exchanged; the rule refuses a communicator of more.
+"""
+from __future__ import annotations
+
+from itertools import chain
+
+import numpy as np
+
+from fabric_fenicsx.material.crack_energy import equal_energy_law, softening_moments
+
+__all__ = ["YarnCrack", "EXCLUSION", "cell_extents"]
+
+EXCLUSION = 3.0
+"""Radius of a cell's neighbourhood, in units of its diameter (longest corner-to-corner
+distance): the cracked cells nearer than this decide whether it may soften. 1.5 diameters hold
+the cells one and two rows beside a crack on a square grid; a new crack starts farther away."""
+
+UNCRACKED, ROOT, TIP, GIVEN = 0, 1, 2, 3
+"""What a cell is in a family's crack: not cracked; the start of a crack (the segment's law);
+on a crack's line behind its start (the law of equal energy); given (a slit)."""
+
+
+def cell_extents(corners: np.ndarray, direction) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi): per cell (reference corners (n, k, 2)) the range of x . d over its corners."""
+    p = np.asarray(corners, float) @ np.asarray(direction, float)
+    return p.min(axis=1), p.max(axis=1)
+
+
+class YarnCrack:
+    """The cracks of both yarn families on one rank's cells (see the module docstring).
+
+    corners: reference corners of the cells (n, k, 2); directions: the yarns' unit vectors
+    (d1, d2); fabric: its damage law and yarn lengths; mu_crit, scale: each point's segment law
+    (2, n_points), the fabric's or a strength scatter's; points_per_cell: points of a cell,
+    consecutive; segment: h0 per family (m), default the unit cell's length along each yarn."""
+
+    def __init__(self, corners, directions, fabric, mu_crit, scale, points_per_cell: int = 1,
+                 segment=None, exclusion: float = EXCLUSION, comm=None):
+        from scipy.spatial import cKDTree
+
+        if comm is not None and comm.size > 1:
+            raise ValueError("the yarn-crack failure rule runs on one rank only (its cracks are not "
+                             "exchanged between ranks); run without mpirun")
+        corners = np.asarray(corners, float)
+        self.npc = int(points_per_cell)
+        n_cells = corners.shape[0]
+        self.law = fabric.damage
+        self.base = (np.asarray(mu_crit, float).copy(), np.asarray(scale, float).copy())
+        if self.base[0].shape != (2, n_cells * self.npc):
+            raise ValueError(f"mu_crit must have shape (2, {n_cells * self.npc}), got {self.base[0].shape}")
+        self.segment = np.array([2 * fabric.warp.w, 2 * fabric.fill.w] if segment is None else segment, float)
+        self.centres = corners.mean(axis=1)
+        self.diameter = np.max(np.linalg.norm(corners[:, :, None] - corners[:, None], axis=-1), axis=(1, 2))
+        self.radius = exclusion * self.diameter
+        self.tree = cKDTree(self.centres)
+        self.lo, self.hi, self.at = np.empty((2, n_cells)), np.empty((2, n_cells)), np.empty((2, n_cells))
+        for i, d in enumerate(directions):
+            self.lo[i], self.hi[i] = cell_extents(corners, d)
+            self.at[i] = self.centres @ np.asarray(d, float)
+        self.kind = np.zeros((2, n_cells), np.int8)
+        self.line = np.full((2, n_cells), np.nan)
+        # the law of equal energy at a crack's tip, per point (cells' extents repeated per point)
+        self.tip = (np.empty_like(self.base[0]), np.empty_like(self.base[1]))
+        for i in range(2):
+            I0, I1, _ = softening_moments(fabric.damage, fabric.yarns[i].mu_crit)
+            ratio = np.repeat(self.segment[i] / (self.hi[i] - self.lo[i]), self.npc)
+            m, s = equal_energy_law(self.base[0][i] - 1.0, self.base[1][i], ratio, I0, I1)
+            self.tip[0][i], self.tip[1][i] = 1.0 + m, s
+        # the laws the points are asked with: the tip's until a cell starts a crack of its own
+        self.mu_crit, self.scale = self.tip[0].copy(), self.tip[1].copy()
+        self.held = np.zeros(2, np.int64)   # cell-steps whose new damage was taken back, per family
+
+    @classmethod
+    def on_cells(cls, corners, directions, fabric, points_per_cell: int = 1, laws=None, comm=None):
+        """The rule over cells whose points have the segment laws ``laws`` = (mu_crit, scale), each
+        (n_points, 2) (a strength scatter's field), or None (the fabric's law everywhere)."""
+        n = np.asarray(corners).shape[0] * int(points_per_cell)
+        if laws is None:
+            mu_crit = np.repeat(np.array([[fabric.warp.mu_crit], [fabric.fill.mu_crit]]), n, axis=1)
+            scale = np.ones((2, n))
+        else:
+            mu_crit, scale = (np.asarray(x, float).T for x in laws)
+        return cls(corners, directions, fabric, mu_crit, scale, points_per_cell, comm=comm)
+
+    def damage_range(self):
+        """The lowest critical stretch per family the laws can take (a surrogate's table must hold
+        damage from there): :class:`~fabric_fenicsx.material.scatter.DamageRange`."""
+        from fabric_fenicsx.material.scatter import DamageRange, failure_stretch
+
+        lo = np.minimum(self.tip[0].min(axis=1, initial=np.inf), self.base[0].min(axis=1, initial=np.inf))
+        hi = np.array([failure_stretch(self.law, self.base[0][i], self.base[1][i]).max(initial=0.0)
+                       for i in range(2)])
+        return DamageRange(lo, hi)
+
+    def add_crack(self, cells, family: int, line: float) -> None:
+        """Cells cut at the start (a slit): family ``family``'s crack on the line x . d = ``line``."""
+        cells = np.asarray(cells, np.int64)
+        self.kind[family, cells] = GIVEN
+        self.line[family, cells] = float(line)
+
+    def summary(self) -> dict:
+        """Per family (warp, fill): the cells that started a crack (``roots``), that cracked on a
+        crack's line (``tips``), that were cut at the start (``given``), and the cell-steps whose
+        new damage was taken back beside a crack (``held``)."""
+        return {name: {"roots": int(np.count_nonzero(self.kind[i] == ROOT)),
+                       "tips": int(np.count_nonzero(self.kind[i] == TIP)),
+                       "given": int(np.count_nonzero(self.kind[i] == GIVEN)), "held": int(self.held[i])}
+                for i, name in enumerate(("warp", "fill"))}
+
+    def laws(self, points) -> dict:
+        """The damage laws of ``points`` (indices or a slice) for the surrogate's update."""
+        return {"critical_stretch": self.mu_crit[:, points], "softening_scale": self.scale[:, points]}
+
+    def _classify(self, family: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(state, line) of candidate ``cells`` against the cracks of ``family`` now: TIP with the
+        line that crosses it (the nearest such cell's), UNCRACKED where cracked cells are near but
+        none crosses it (held), ROOT where none is near (a crack of its own if the segment's law
+        damages it)."""
+        near = self.tree.query_ball_point(self.centres[cells], self.radius[cells])
+        sizes = np.fromiter(map(len, near), np.int64, cells.size)
+        other = np.fromiter(chain.from_iterable(near), np.int64, int(sizes.sum()))
+        owner = np.repeat(np.arange(cells.size), sizes)
+        cracked = self.kind[family, other] != UNCRACKED
+        other, owner = other[cracked], owner[cracked]
+        state = np.where(np.bincount(owner, minlength=cells.size) > 0, UNCRACKED, ROOT).astype(np.int8)
+        line = self.at[family, cells].copy()
+        lines = self.line[family, other]
+        crossing = (lines >= self.lo[family, cells[owner]]) & (lines <= self.hi[family, cells[owner]])
+        other, owner, lines = other[crossing], owner[crossing], lines[crossing]
+        if owner.size:
+            distance = np.linalg.norm(self.centres[other] - self.centres[cells[owner]], axis=1)
+            order = np.lexsort((distance, owner))
+            first = order[np.r_[True, owner[order][1:] != owner[order][:-1]]]
+            state[owner[first]] = TIP
+            line[owner[first]] = lines[first]
+        return state, line
+
+    def admit(self, surrogate, points, E1, E2, a_old, b_new):
+        """Accept, take back or redo the new damage ``b_new`` (2, m) of the live ``points`` (global
+        point indices, (m,)) from the previous ``a_old`` (2, m) at the strains (E1, E2) the
+        surrogate's update saw. Returns (b, redo): the damage to keep, and the positions (into
+        ``points``) whose stresses must be evaluated again at it."""
+        b = b_new.copy()
+        redo = []
+        npc = self.npc
+        for i in range(2):
+            cell_of = points // npc
+            new = (b_new[i] < a_old[i]) & (self.kind[i, cell_of] == UNCRACKED)
+            if not new.any():
+                continue
+            cells = np.unique(cell_of[new])
+            state, line = self._classify(i, cells)
+            tips = cells[state == TIP]
+            self.kind[i, tips], self.line[i, tips] = TIP, line[state == TIP]
+            held = cells[state == UNCRACKED]
+            roots = cells[state == ROOT]
+            if roots.size:
+                at = np.flatnonzero(np.isin(cell_of, roots))
+                mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
+                mu[i], sc[i] = self.base[0][i, points[at]], self.base[1][i, points[at]]
+                _, _, c1, c2 = surrogate.update(E1[at], E2[at], a_old[0, at], a_old[1, at],
+                                                critical_stretch=mu, softening_scale=sc)
+                full = np.stack((c1, c2))
+                started = np.unique(cell_of[at][full[i] < a_old[i, at]])
+                started = self._one_per_neighbourhood(i, started)
+                self.kind[i, started], self.line[i, started] = ROOT, self.at[i, started]
+                go = np.isin(cell_of[at], started)
+                p = points[at[go]]
+                self.mu_crit[i, p], self.scale[i, p] = self.base[0][i, p], self.base[1][i, p]
+                b[:, at[go]] = full[:, go]
+                redo.append(at[go])
+                held = np.concatenate((held, np.setdiff1d(roots, started)))
+            self.held[i] += held.size
+            back = np.flatnonzero(np.isin(cell_of, held) & new)
+            b[i, back] = a_old[i, back]
+            redo.append(back)
+        redo = np.unique(np.concatenate(redo)) if redo else np.zeros(0, np.int64)
+        return b, redo
+
+    def _one_per_neighbourhood(self, family: int, cells: np.ndarray) -> np.ndarray:
+        """Of cells starting cracks in the same step, those not near an earlier one (by index: a
+        deterministic order) or crossed by its line."""
+        kept = []
+        for c in cells:
+            ok = True
+            for k in kept:
+                if np.linalg.norm(self.centres[c] - self.centres[k]) <= self.radius[c]:
+                    ok = False
+                    break
+            if ok:
+                kept.append(c)
+        return np.array(kept, np.int64)

@@ -1,0 +1,107 @@
+"""The yarn-crack failure rule (fabric_fenicsx.fem.yarn_crack): its laws carry one segment's
+energy over each cell's extent along the yarn, and a new damage is kept on a crack's line, taken
+back beside it, and starts a crack of its own only far from any and at the segment's strength."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fabric_fenicsx.fem.yarn_crack import GIVEN, ROOT, TIP, UNCRACKED, YarnCrack, cell_extents
+from fabric_fenicsx.material.crack_energy import breaking_work, softening_moments
+from fabric_fenicsx.material.fabric import zylon_as
+
+X, Y = np.array([1.0, 0.0]), np.array([0.0, 1.0])
+
+
+def _grid(n: int, h: float) -> np.ndarray:
+    """Corners (n*n, 4, 2) of n x n squares of side h from the origin; cell i * n + j at column i, row j."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    return np.stack([np.column_stack(((i + a) * h, (j + b) * h)) for a, b in ((0, 0), (1, 0), (1, 1), (0, 1))],
+                    axis=1).astype(float)
+
+
+def _rule(corners, fabric=None):
+    return YarnCrack.on_cells(corners, (X, Y), fabric or zylon_as())
+
+
+class ThresholdSurrogate:
+    """A stand-in for the surrogate's damage update: a yarn whose strain passes its critical
+    strain (mu_crit - 1) loses half its fibrils."""
+
+    def update(self, E1, E2, a1, a2, critical_stretch, softening_scale):
+        b1 = np.where(E1 > critical_stretch[0] - 1.0, 0.5 * a1, a1)
+        b2 = np.where(E2 > critical_stretch[1] - 1.0, 0.5 * a2, a2)
+        return np.zeros_like(E1), np.zeros_like(E1), b1, b2
+
+
+def test_the_extent_along_a_yarn_of_a_turned_square():
+    t = math.radians(30)
+    square = np.array([[[0, 0], [1, 0], [1, 1], [0, 1]]], float) @ np.array([[math.cos(t), math.sin(t)],
+                                                                             [-math.sin(t), math.cos(t)]])
+    lo, hi = cell_extents(square, X)
+    assert hi[0] - lo[0] == pytest.approx(math.cos(t) + math.sin(t))
+
+
+@pytest.mark.parametrize("side", [0.726e-3, 2e-3, 4e-3])
+def test_a_crack_tip_cell_breaks_with_one_segments_work(side):
+    fabric = zylon_as()
+    rule = _rule(_grid(3, side), fabric)
+    h0 = 2 * fabric.warp.w
+    I0, I1, _ = softening_moments(fabric.damage, fabric.warp.mu_crit)
+    m0 = fabric.warp.mu_crit - 1.0
+    work = breaking_work(rule.tip[0][0] - 1.0, rule.tip[1][0], I0, I1)
+    assert np.allclose(work * side, breaking_work(m0, 1.0, I0, I1) * min(h0, side), rtol=1e-9)
+    assert np.all(rule.base[0][0] == fabric.warp.mu_crit)          # a root keeps the segment's law
+
+
+def test_new_damage_is_kept_on_the_line_taken_back_beside_it_and_starts_a_crack_only_far_away():
+    h = 2e-3
+    n = 15
+    corners = _grid(n, h)
+    rule = _rule(corners)
+    cell = lambda i, j: i * n + j                                     # noqa: E731
+    rule.add_crack([cell(7, 0), cell(7, 1), cell(7, 2)], 0, 7.5 * h)  # a slit across the warp, column 7
+    points = np.arange(n * n)
+    tip_strain = rule.tip[0][0, 0] - 1.0
+    full_strain = rule.base[0][0, 0] - 1.0
+    E1 = np.zeros(n * n)
+    on_line, beside, far_strong, far_weak = cell(7, 3), cell(6, 3), cell(1, 12), cell(13, 12)
+    E1[[on_line, beside, far_weak]] = 0.5 * (tip_strain + full_strain)   # past the tip's law only
+    E1[far_strong] = full_strain + 0.001                                  # past the segment's law
+    a_old = np.ones((2, n * n))
+    surrogate = ThresholdSurrogate()
+    b_new = np.stack(surrogate.update(E1, np.zeros(n * n), a_old[0], a_old[1], *rule.laws(points).values())[2:])
+    b, redo = rule.admit(surrogate, points, E1, np.zeros(n * n), a_old, b_new)
+    assert b[0, on_line] == 0.5 and rule.kind[0, on_line] == TIP and rule.line[0, on_line] == 7.5 * h
+    assert b[0, beside] == 1.0 and rule.kind[0, beside] == UNCRACKED
+    assert b[0, far_strong] == 0.5 and rule.kind[0, far_strong] == ROOT
+    assert rule.line[0, far_strong] == pytest.approx(1.5 * h)       # its own line, through its centre
+    assert rule.mu_crit[0, far_strong] == rule.base[0][0, far_strong]
+    assert b[0, far_weak] == 1.0 and rule.kind[0, far_weak] == UNCRACKED
+    assert rule.kind[0, cell(7, 0)] == GIVEN and np.all(rule.kind[1] == UNCRACKED)
+    assert set(redo) == {beside, far_strong, far_weak}
+
+
+def test_cells_starting_cracks_in_one_step_keep_apart():
+    h = 2e-3
+    n = 15
+    rule = _rule(_grid(n, h))
+    points = np.arange(n * n)
+    E1 = np.zeros(n * n)
+    E1[[7 * n + 7, 8 * n + 7]] = rule.base[0][0, 0] - 1.0 + 0.001   # two neighbours across the warp
+    a_old = np.ones((2, n * n))
+    surrogate = ThresholdSurrogate()
+    b_new = np.stack(surrogate.update(E1, np.zeros(n * n), a_old[0], a_old[1], *rule.laws(points).values())[2:])
+    b, _ = rule.admit(surrogate, points, E1, np.zeros(n * n), a_old, b_new)
+    assert rule.kind[0, 7 * n + 7] == ROOT and rule.kind[0, 8 * n + 7] == UNCRACKED
+    assert b[0, 8 * n + 7] == 1.0
+
+
+def test_the_rule_refuses_more_than_one_rank():
+    class TwoRanks:
+        size = 2
+
+    with pytest.raises(ValueError, match="one rank"):
+        YarnCrack(_grid(2, 1e-3), (X, Y), zylon_as(), np.full((2, 4), 1.03), np.ones((2, 4)), comm=TwoRanks())

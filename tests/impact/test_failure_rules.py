@@ -1,0 +1,58 @@
+"""The scene's failure rule (``material.failure``, fabric_fenicsx.impact.setup.FAILURE_RULES):
+a bad name is refused; the yarn crack runs an impact whose removed cells lie on lines along the
+fill, says what its cracks did in summary.json, and refuses more than one rank in one line."""
+
+import csv
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import mpi_env
+
+from fabric_fenicsx.impact.scene import SceneError, load_scene
+
+REPO = Path(__file__).resolve().parents[2]
+Y90 = str(REPO / "demos" / "scenes" / "y90.toml")
+BASE = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", Y90, "--quiet", "--set", "output.xdmf_interval=0",
+        "--set", "output.png=false", "--set", "material.failure=yarn_crack"]
+
+
+def test_an_unknown_failure_rule_is_refused_with_the_known_ones():
+    with pytest.raises(SceneError, match="material.failure.*thesis.*yarn_crack"):
+        load_scene(Y90, ["material.failure=nosuch"])
+    assert load_scene(Y90, []).material.failure == "thesis"
+
+
+def test_a_yarn_crack_impact_tears_along_the_fill(tmp_path):
+    """Y90 (warp along y) at 57.3 m/s on the demo's 4 mm mesh: every removed cell has a yarn
+    broken, and the cells removed with a broken warp lie in bands across the warp (narrow along y,
+    long along x), no more bands than warp cracks the rule started."""
+    run = subprocess.run([*BASE, "--set", "projectile.velocity=57.3", "--set", "mesh.h_centre=0.004",
+                          "--out", str(tmp_path / "run")], capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    cracks = summary["failure"]["cracks"]
+    assert summary["failure"]["rule"] == "yarn_crack" and summary["perforated"]
+    assert cracks["warp"]["roots"] >= 1 and cracks["warp"]["tips"] > cracks["warp"]["roots"]
+    with open(tmp_path / "run" / "removed_cells.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and all(min(float(r["alpha1_warp"]), float(r["alpha2_fill"])) < 0.5 for r in rows)
+    warp = [r for r in rows if float(r["alpha1_warp"]) < 0.5]
+    y = np.sort([float(r["y_m"]) for r in warp])
+    x = np.array([float(r["x_m"]) for r in warp])
+    bands = np.split(y, np.flatnonzero(np.diff(y) > 0.008) + 1)    # two cells apart: another band
+    assert len(warp) > 10 and len(bands) <= cracks["warp"]["roots"]
+    assert max(b.ptp() for b in bands) < 0.25 * x.ptp()
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
+def test_the_yarn_crack_on_two_ranks_stops_with_one_line(tmp_path):
+    run = subprocess.run(["mpirun", "-n", "2", "--oversubscribe", *BASE, "--set", "run.t_end=2e-5",
+                          "--out", str(tmp_path / "run")], env=mpi_env(), capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode != 0
+    assert "runs on one rank" in run.stderr and "Traceback" not in run.stderr
