@@ -67,10 +67,27 @@ apt:
 $(PY): | apt
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
 
-# The test extra, and the cluster extra (dask.distributed) so that the tests of studies on a
-# cluster run too.
+# numba first, then the package with the test extra, and the cluster extra (dask.distributed)
+# so that the tests of studies on a cluster run too. While pip installs the rest, a short run of
+# the demo's scene compiles numba's kernels into their on-disk cache on the other core
+# (fabric_fenicsx.surrogate.kernels.warm: it needs only numba and Debian's packages), so that the
+# first run does not compile them (about 20 s); WARM=0 skips it. It ends before setup does; a
+# failed warm-up only means the first run compiles them itself.
+WARM ?= 1
 $(STAMP): pyproject.toml constraints.txt | $(PY) apt
-	$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'
+	$(PIP) install $(PIP_FLAGS) -c constraints.txt numba llvmlite
+	@warm=""; log=$$(mktemp); \
+	if [ "$(WARM)" = 1 ]; then \
+	  echo "numba warm-up: compiling the kernels in the background"; \
+	  PYTHONPATH="$(CURDIR)$${PYTHONPATH:+:$$PYTHONPATH}" timeout 300 $(PY) -m fabric_fenicsx.surrogate.kernels.warm > $$log 2>&1 & warm=$$!; \
+	fi; \
+	echo "$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'"; \
+	$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'; rc=$$?; \
+	if [ -n "$$warm" ]; then \
+	  wait $$warm || echo "numba warm-up: stopped (exit $$?); the first run compiles the kernels"; \
+	  if [ -n "$$(tail -n 1 $$log)" ]; then tail -n 1 $$log; fi; \
+	fi; \
+	rm -f $$log; exit $$rc
 	$(PY) -c "import dolfinx, pyvista, numpy, scipy, distributed; \
 	  assert numpy.__version__ == '1.24.2', f'numpy {numpy.__version__} in $(VENV), expected 1.24.2 (constraints.txt)'; \
 	  print('dolfinx', dolfinx.__version__, '| pyvista', pyvista.__version__, '| numpy', numpy.__version__, '| scipy', scipy.__version__, '| distributed', distributed.__version__)"
