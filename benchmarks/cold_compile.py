@@ -7,10 +7,11 @@ another (the shipped tiles are read). It prints, per compiled function, how long
 compile it (inclusive of the functions it calls that were compiled with it, and without them),
 how many signatures each kernel got, the run's wall time and the sum of the compile times.
 
-    .venv/bin/python benchmarks/cold_compile.py [--warm] [--steps N] [--keep DIR]
+    .venv/bin/python benchmarks/cold_compile.py [--warm] [--warmed] [--steps N] [--keep DIR]
 
 ``--warm``: run twice in the same numba cache folder (separate processes) and print the
-second run's compile and load times too; ``--steps N``: stop the demo after N steps (the damage
+second run's compile times too; ``--warmed``: run ``fabric_fenicsx.surrogate.kernels.warm``
+(what ``make setup`` runs) in the empty cache first, and show what the demo still compiles; ``--steps N``: stop the demo after N steps (the damage
 iteration is first compiled when damage starts, near step 3,700: fewer steps do not compile
 it); ``--keep DIR``: use DIR as the numba cache folder and keep it.
 
@@ -94,6 +95,7 @@ def report(data: dict, title: str) -> float:
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--warm", action="store_true")
+    p.add_argument("--warmed", action="store_true")
     p.add_argument("--steps", type=int, default=None)
     p.add_argument("--keep", default=None)
     p.add_argument("--child", default=None, help=argparse.SUPPRESS)
@@ -105,7 +107,12 @@ def main() -> int:
         tmp = Path(tmp)
         numba_dir = Path(a.keep) if a.keep else tmp / "numba"
         env = dict(os.environ, NUMBA_CACHE_DIR=str(numba_dir), FABRIC_FENICSX_CACHE=str(tmp / "tiles"))
-        runs = ["cold"] + (["warm"] if a.warm else [])
+        if a.warmed:
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "fabric_fenicsx.surrogate.kernels.warm"], env=env,
+                           check=True)
+            print(f"warm-up process {time.perf_counter() - t0:.1f} s")
+        runs = ["warmed" if a.warmed else "cold"] + (["warm"] if a.warm else [])
         for name in runs:
             out = tmp / name
             out.mkdir()
@@ -113,7 +120,7 @@ def main() -> int:
             if a.steps:
                 cmd += ["--steps", str(a.steps)]
             t0 = time.perf_counter()
-            subprocess.run(cmd, env=env, check=True)
+            subprocess.run(cmd, env=env, check=True, stdout=subprocess.DEVNULL)
             proc = time.perf_counter() - t0
             data = json.loads((out / "compile.json").read_text())
             report(data, f"{name} numba cache (process {proc:.1f} s)")
