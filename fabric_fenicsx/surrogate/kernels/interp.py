@@ -184,19 +184,6 @@ def _quantity_slopes(coef, table, spec, c, k, w, a, b, x1, x2):
     return v * factor, g1 * factor / h, g2 * factor / h
 
 
-@njit(cache=True, nogil=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
-def _force_slope(yarn, e_other, x, a1, a2, table, spec):
-    """P of ``yarn`` (0 warp, 1 fill; ``spec`` its single quantity) and dP/dE of its own
-    strain x, the crossing yarn at e_other; ok False where a tile is not built."""
-    e1, e2 = (x, e_other) if yarn == 0 else (e_other, x)
-    layer, k, w, a, b, i, j = _locate(e1, e2, a1, a2, table)
-    if layer < 0:
-        return 0.0, 0.0, False
-    coef = table[0] if layer == 0 else table[1]
-    v, g1, g2 = _quantity_slopes(coef, table, spec, 0, k, w, a, b, a1, a2)
-    return v, (g1 if yarn == 0 else g2), True
-
-
 ROOT_FOUND, ROOT_NONE, ROOT_TENSION, ROOT_NEEDS_TILES = 0, 1, 3, 2
 """Status of :func:`zero_force_strain` per point."""
 AT_LO, AT_X, AT_RIGHT = 0, 1, 2
@@ -212,9 +199,9 @@ def zero_force_strain(yarn, E_other, lo, hi, guess, a1, a2, table, spec, tol, ma
     one or two Newton steps), else from hi. ``status``: ROOT_FOUND; ROOT_TENSION where P(lo) >=
     0 (nothing to find, out = lo); ROOT_NONE where P(hi) < 0 too (out = lo); ROOT_NEEDS_TILES
     where a tile on the way is not built (out not set)."""
-    # One call site of the inlined _force_slope (numba copies an inlined function's IR once per
-    # site, and that copy is most of the compile time): the search is a loop over evaluations,
-    # ``at`` says which one the value is: P(lo), P(x) (the Newton iterate) or P(right).
+    # The force is evaluated at one place, a loop over the evaluations (``at``: which one, P(lo),
+    # P(x) at the Newton iterate or P(right)): numba copies an inlined function (_quantity_slopes)
+    # once per call site, and with four sites that copy took 19 s of the kernel's 20 s compile.
     for n in range(E_other.size):
         e, x1, x2 = E_other[n], a1[n], a2[n]
         left, right = lo[n], hi[n]
@@ -224,7 +211,15 @@ def zero_force_strain(yarn, E_other, lo, hi, guess, a1, a2, table, spec, tol, ma
         right_known = False
         it = 0
         while True:
-            v, slope, ok = _force_slope(yarn, e, xe, x1, x2, table, spec)
+            # P of ``yarn`` at its own strain xe and dP/dxe; ok False where a tile is not built
+            e1, e2 = (xe, e) if yarn == 0 else (e, xe)
+            layer, k, w, a, b, i, j = _locate(e1, e2, x1, x2, table)
+            ok = layer >= 0
+            v = slope = 0.0
+            if ok:
+                coef = table[0] if layer == 0 else table[1]
+                v, g1, g2 = _quantity_slopes(coef, table, spec, 0, k, w, a, b, x1, x2)
+                slope = g1 if yarn == 0 else g2
             if at == AT_LO:
                 if not ok:
                     status[n] = ROOT_NEEDS_TILES
