@@ -23,9 +23,10 @@ STAMP := $(VENV)/.fabric_fenicsx-installed
 PIP_FLAGS ?= --progress-bar off
 
 # The demo: Y90 at 57.3 m/s on a coarse mesh (4 mm at the impact point instead of the scene's
-# 1.41 mm) so that it finishes in minutes from a fresh clone (1.5 min with the Debian packages
-# installed: its table tiles ship with the package; about 15 s of run once numba's kernels are
-# compiled, docs/demo.md); docs/mesh_independence.md says what the mesh changes.
+# 1.41 mm) so that it finishes in minutes from a fresh clone (under 1.5 min with the Debian
+# packages installed: its table tiles ship with the package and `make setup` compiles numba's
+# kernels beside pip; about 15 s of run, docs/demo.md); docs/mesh_independence.md says what the
+# mesh changes.
 DEMO_CMD ?= $(VENV)/bin/fabric-fenicsx impact demos/scenes/y90.toml --out out/impact-y90 --set projectile.velocity=57.3 --set mesh.h_centre=0.004
 PYTEST_ARGS ?= -q tests
 

@@ -11,9 +11,10 @@ how many signatures each kernel got, the run's wall time and the sum of the comp
 
 ``--warm``: run twice in the same numba cache folder (separate processes) and print the
 second run's compile times too; ``--warmed``: run ``fabric_fenicsx.surrogate.kernels.warm``
-(what ``make setup`` runs) in the empty cache first, and show what the demo still compiles; ``--steps N``: stop the demo after N steps (the damage
-iteration is first compiled when damage starts, near step 3,700: fewer steps do not compile
-it); ``--keep DIR``: use DIR as the numba cache folder and keep it.
+(what ``make setup`` runs) in the empty cache first, and show what the demo still compiles;
+``--steps N``: stop the demo after N steps (every kernel is called by step 14, where the first
+compressed yarn calls the tension field's search); ``--keep DIR``: use DIR as the numba cache
+folder and keep it.
 
 numba's compile events (``numba.core.event``, "numba:compile") give the times; a function
 compiled inside another's compile (a callee) is counted in both the inclusive time of its
