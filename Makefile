@@ -72,7 +72,7 @@ $(PY): | apt
 # so that the tests of studies on a cluster run too. While pip installs the rest, a short run of
 # the demo's scene compiles numba's kernels into their on-disk cache on the other core
 # (fabric_fenicsx.surrogate.kernels.warm: it needs only numba and Debian's packages), so that the
-# first run does not compile them (about 20 s); WARM=0 skips it. It ends before setup does; a
+# first run does not compile them (about 25 s); WARM=0 skips it. It ends before setup does; a
 # failed warm-up only means the first run compiles them itself.
 WARM ?= 1
 $(STAMP): pyproject.toml constraints.txt | $(PY) apt

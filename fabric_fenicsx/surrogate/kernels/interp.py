@@ -15,8 +15,12 @@ import math
 
 from numba import njit
 
+INNER = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+"""Options of the helpers only compiled code calls: no Python or C entry point to compile (less
+compile time on a first run; calling them from Python raises)."""
 
-@njit(cache=True, nogil=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _value(coef, k, P, a, b):
     """sum_pq C_pq a^p b^q of the block at coef[k:]."""
     if P == 4:
@@ -30,7 +34,7 @@ def _value(coef, k, P, a, b):
     return coef[k] + coef[k + 1] * b + a * (coef[k + 2] + coef[k + 3] * b)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _value_slopes(coef, k, P, a, b):
     """:func:`_value` and its derivatives d/da, d/db."""
     if P == 4:
@@ -50,7 +54,7 @@ def _value_slopes(coef, k, P, a, b):
             coef[k + 2] + coef[k + 3] * b, coef[k + 1] + a * coef[k + 3])
 
 
-@njit(cache=True, nogil=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _locate(e1, e2, x1, x2, table):
     """A point's cell: (layer, k, w, a, b, i, j), layer -1 where a tile it needs is not built,
     0 intact (r = 1), 1 damaged; k the first row of its quantities (damaged: at the r node
@@ -78,14 +82,14 @@ def _locate(e1, e2, x1, x2, table):
             s - i, s2 - j, i, j)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _risk(x1, x2, i, j, table):
     """Flag 0: the point's damage cannot change (its cell's nodes all below mu_crit), 1: it may."""
     safe = table[4] if (x1 >= 1.0 and x2 >= 1.0) else table[5]
     return 0 if safe[i, j] else 1
 
 
-@njit(cache=True, nogil=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _dead(x1, x2, c, spec, broken):
     """The value of quantity c where a yarn is broken, NaN where none is. A yarn is broken
     below ``broken`` (ALPHA_BROKEN), as in the unit cell, which takes such a yarn out of the
@@ -163,7 +167,7 @@ def lookup_derivatives(E1, E2, a1, a2, table, spec, out, d1, d2, flag):
         flag[n] = _risk(x1, x2, i, j, table)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", **INNER, inline="always")
 def _quantity_slopes(coef, table, spec, c, k, w, a, b, x1, x2):
     """Quantity c of ``spec`` and its derivatives d/dE1, d/dE2 at a point located in the
     layer whose coefficients are ``coef`` (:func:`_locate`)."""
