@@ -23,9 +23,10 @@ STAMP := $(VENV)/.fabric_fenicsx-installed
 PIP_FLAGS ?= --progress-bar off
 
 # The demo: Y90 at 57.3 m/s on a coarse mesh (4 mm at the impact point instead of the scene's
-# 1.41 mm) so that it finishes in minutes from a fresh clone (1.5 min with the Debian packages
-# installed: its table tiles ship with the package; about 15 s of run once numba's kernels are
-# compiled, docs/demo.md); docs/mesh_independence.md says what the mesh changes.
+# 1.41 mm) so that it finishes in minutes from a fresh clone (under 1.5 min with the Debian
+# packages installed: its table tiles ship with the package and `make setup` compiles numba's
+# kernels beside pip; about 15 s of run, docs/demo.md); docs/mesh_independence.md says what the
+# mesh changes.
 DEMO_CMD ?= $(VENV)/bin/fabric-fenicsx impact demos/scenes/y90.toml --out out/impact-y90 --set projectile.velocity=57.3 --set mesh.h_centre=0.004
 PYTEST_ARGS ?= -q tests
 
@@ -67,10 +68,27 @@ apt:
 $(PY): | apt
 	$(SYSTEM_PYTHON) -m venv --system-site-packages $(VENV)
 
-# The test extra, and the cluster extra (dask.distributed) so that the tests of studies on a
-# cluster run too.
+# numba first, then the package with the test extra, and the cluster extra (dask.distributed)
+# so that the tests of studies on a cluster run too. While pip installs the rest, a short run of
+# the demo's scene compiles numba's kernels into their on-disk cache on the other core
+# (fabric_fenicsx.surrogate.kernels.warm: it needs only numba and Debian's packages), so that the
+# first run does not compile them (about 25 s); WARM=0 skips it. It ends before setup does; a
+# failed warm-up only means the first run compiles them itself.
+WARM ?= 1
 $(STAMP): pyproject.toml constraints.txt | $(PY) apt
-	$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'
+	$(PIP) install $(PIP_FLAGS) -c constraints.txt numba llvmlite
+	@warm=""; log=$$(mktemp); \
+	if [ "$(WARM)" = 1 ]; then \
+	  echo "numba warm-up: compiling the kernels in the background"; \
+	  PYTHONPATH="$(CURDIR)$${PYTHONPATH:+:$$PYTHONPATH}" timeout 300 $(PY) -m fabric_fenicsx.surrogate.kernels.warm > $$log 2>&1 & warm=$$!; \
+	fi; \
+	echo "$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'"; \
+	$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'; rc=$$?; \
+	if [ -n "$$warm" ]; then \
+	  wait $$warm || echo "numba warm-up: stopped (exit $$?); the first run compiles the kernels"; \
+	  if [ -n "$$(tail -n 1 $$log)" ]; then tail -n 1 $$log; fi; \
+	fi; \
+	rm -f $$log; exit $$rc
 	$(PY) -c "import dolfinx, pyvista, numpy, scipy, distributed; \
 	  assert numpy.__version__ == '1.24.2', f'numpy {numpy.__version__} in $(VENV), expected 1.24.2 (constraints.txt)'; \
 	  print('dolfinx', dolfinx.__version__, '| pyvista', pyvista.__version__, '| numpy', numpy.__version__, '| scipy', scipy.__version__, '| distributed', distributed.__version__)"

@@ -6,5 +6,7 @@ against:
 - :mod:`.damage`: the damage iteration, which compiles the very functions of
   :mod:`fabric_fenicsx.material.damage_solver` that the unit cell runs in Python;
 - :mod:`.yarn_stress`: the slack rule, viscous yarn stress and its work for the quadrature-point
-  adapter :class:`fabric_fenicsx.fem.yarn_stress.YarnStress`.
+  adapter :class:`fabric_fenicsx.fem.yarn_stress.YarnStress`;
+- :mod:`.warm`: not a kernel: a short impact run that fills numba's cache with every kernel a
+  run compiles (``make setup`` runs it beside pip).
 """

@@ -63,13 +63,13 @@ def band_alpha(mu, mu_crit, scale, law):
     return law_alpha(mu, mu_crit, law)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, **interp_kernel.INNER)
 def _at_most(hist, t):
     """min(hist, t), NaN if t is (as numpy.minimum)."""
     return t if (math.isnan(t) or t < hist) else hist
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, **interp_kernel.INNER)
 def _law_target(ctx, a1, a2):
     """min(alpha^hist, alpha(mu(alpha))) of one point at (a1, a2): ctx = (alpha1^hist,
     alpha2^hist, law, mu_crit, table, spec of (mu1, mu2), the point's E1, E2, alpha1,
@@ -83,7 +83,7 @@ def _law_target(ctx, a1, a2):
             _at_most(h2, band_alpha(mu[0, 1], mu_crit[1], scale[1], law)))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, **interp_kernel.INNER)
 def _target(ctx, a1, a2):
     """The iteration's target: :func:`_law_target` with a yarn below ALPHA_BROKEN broken."""
     broken = ctx[4][12]
@@ -92,11 +92,12 @@ def _target(ctx, a1, a2):
 
 def _compiled(module, names, **bound):
     """numba twins of ``module``'s functions ``names``, calling each other compiled, with the
-    module's globals ``bound`` replaced."""
+    module's globals ``bound`` replaced (only compiled code calls them: no Python entry points)."""
     namespace = dict(vars(module), **bound)
     for name in names:
         code = getattr(module, name).__code__
-        namespace[name] = njit(cache=True, nogil=True)(types.FunctionType(code, namespace, name))
+        namespace[name] = njit(cache=True, nogil=True, **interp_kernel.INNER)(
+            types.FunctionType(code, namespace, name))
     return namespace
 
 

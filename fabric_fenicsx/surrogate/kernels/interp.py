@@ -15,8 +15,12 @@ import math
 
 from numba import njit
 
+INNER = dict(no_cpython_wrapper=True, no_cfunc_wrapper=True)
+"""Options of the helpers only compiled code calls: no Python or C entry point to compile (less
+compile time on a first run; calling them from Python raises)."""
 
-@njit(cache=True, nogil=True, error_model="numpy")
+
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _value(coef, k, P, a, b):
     """sum_pq C_pq a^p b^q of the block at coef[k:]."""
     if P == 4:
@@ -30,7 +34,7 @@ def _value(coef, k, P, a, b):
     return coef[k] + coef[k + 1] * b + a * (coef[k + 2] + coef[k + 3] * b)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _value_slopes(coef, k, P, a, b):
     """:func:`_value` and its derivatives d/da, d/db."""
     if P == 4:
@@ -50,7 +54,7 @@ def _value_slopes(coef, k, P, a, b):
             coef[k + 2] + coef[k + 3] * b, coef[k + 1] + a * coef[k + 3])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _locate(e1, e2, x1, x2, table):
     """A point's cell: (layer, k, w, a, b, i, j), layer -1 where a tile it needs is not built,
     0 intact (r = 1), 1 damaged; k the first row of its quantities (damaged: at the r node
@@ -78,14 +82,14 @@ def _locate(e1, e2, x1, x2, table):
             s - i, s2 - j, i, j)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _risk(x1, x2, i, j, table):
     """Flag 0: the point's damage cannot change (its cell's nodes all below mu_crit), 1: it may."""
     safe = table[4] if (x1 >= 1.0 and x2 >= 1.0) else table[5]
     return 0 if safe[i, j] else 1
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", **INNER)
 def _dead(x1, x2, c, spec, broken):
     """The value of quantity c where a yarn is broken, NaN where none is. A yarn is broken
     below ``broken`` (ALPHA_BROKEN), as in the unit cell, which takes such a yarn out of the
@@ -163,7 +167,7 @@ def lookup_derivatives(E1, E2, a1, a2, table, spec, out, d1, d2, flag):
         flag[n] = _risk(x1, x2, i, j, table)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", **INNER, inline="always")
 def _quantity_slopes(coef, table, spec, c, k, w, a, b, x1, x2):
     """Quantity c of ``spec`` and its derivatives d/dE1, d/dE2 at a point located in the
     layer whose coefficients are ``coef`` (:func:`_locate`)."""
@@ -184,21 +188,9 @@ def _quantity_slopes(coef, table, spec, c, k, w, a, b, x1, x2):
     return v * factor, g1 * factor / h, g2 * factor / h
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _force_slope(yarn, e_other, x, a1, a2, table, spec):
-    """P of ``yarn`` (0 warp, 1 fill; ``spec`` its single quantity) and dP/dE of its own
-    strain x, the crossing yarn at e_other; ok False where a tile is not built."""
-    e1, e2 = (x, e_other) if yarn == 0 else (e_other, x)
-    layer, k, w, a, b, i, j = _locate(e1, e2, a1, a2, table)
-    if layer < 0:
-        return 0.0, 0.0, False
-    coef = table[0] if layer == 0 else table[1]
-    v, g1, g2 = _quantity_slopes(coef, table, spec, 0, k, w, a, b, a1, a2)
-    return v, (g1 if yarn == 0 else g2), True
-
-
 ROOT_FOUND, ROOT_NONE, ROOT_TENSION, ROOT_NEEDS_TILES = 0, 1, 3, 2
 """Status of :func:`zero_force_strain` per point."""
+AT_LO, AT_X, AT_RIGHT = 0, 1, 2
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -211,51 +203,78 @@ def zero_force_strain(yarn, E_other, lo, hi, guess, a1, a2, table, spec, tol, ma
     one or two Newton steps), else from hi. ``status``: ROOT_FOUND; ROOT_TENSION where P(lo) >=
     0 (nothing to find, out = lo); ROOT_NONE where P(hi) < 0 too (out = lo); ROOT_NEEDS_TILES
     where a tile on the way is not built (out not set)."""
+    # The force is evaluated at one place, a loop over the evaluations (``at``: which one, P(lo),
+    # P(x) at the Newton iterate or P(right)): numba copies an inlined function (_quantity_slopes)
+    # once per call site, and with four sites that copy took 19 s of the kernel's 20 s compile.
     for n in range(E_other.size):
         e, x1, x2 = E_other[n], a1[n], a2[n]
         left, right = lo[n], hi[n]
         out[n] = left
-        g, d, ok = _force_slope(yarn, e, left, x1, x2, table, spec)
-        if not ok:
-            status[n] = ROOT_NEEDS_TILES
-            continue
-        if g >= 0.0:
-            status[n] = ROOT_TENSION
-            continue
-        # Newton from the guess (else from hi) inside [left, right]; P(right) >= 0 is checked
-        # only when a step would leave the bracket on that side (a good guess needs no check).
-        x = guess[n] if left < guess[n] < right else right
-        g, d, ok = _force_slope(yarn, e, x, x1, x2, table, spec)
+        at, xe = AT_LO, left
+        x = step = g = d = 0.0
         right_known = False
-        status[n] = ROOT_FOUND
-        for _ in range(max_iter):
-            if not ok:
-                status[n] = ROOT_NEEDS_TILES
-                break
-            if g == 0.0:
-                break
-            if g < 0.0:
-                left = x
-            else:
-                right, right_known = x, True
-            step = x - g / d if d > 0.0 else math.nan
-            if not (left <= step <= right) and not right_known:
-                gr, _, ok = _force_slope(yarn, e, right, x1, x2, table, spec)
+        it = 0
+        while True:
+            # P of ``yarn`` at its own strain xe and dP/dxe; ok False where a tile is not built
+            e1, e2 = (xe, e) if yarn == 0 else (e, xe)
+            layer, k, w, a, b, i, j = _locate(e1, e2, x1, x2, table)
+            ok = layer >= 0
+            v = slope = 0.0
+            if ok:
+                coef = table[0] if layer == 0 else table[1]
+                v, g1, g2 = _quantity_slopes(coef, table, spec, 0, k, w, a, b, x1, x2)
+                slope = g1 if yarn == 0 else g2
+            if at == AT_LO:
                 if not ok:
                     status[n] = ROOT_NEEDS_TILES
                     break
-                if gr < 0.0:
+                if v >= 0.0:
+                    status[n] = ROOT_TENSION
+                    break
+                # Newton from the guess (else from hi) inside [left, right]; P(right) >= 0 is
+                # checked only when a step would leave the bracket on that side (a good guess
+                # needs no check).
+                x = guess[n] if left < guess[n] < right else right
+                status[n] = ROOT_FOUND
+                at, xe = AT_X, x
+                continue
+            if at == AT_X:
+                g, d = v, slope
+                if it == max_iter:
+                    out[n] = x
+                    break
+                it += 1
+                if not ok:
+                    status[n] = ROOT_NEEDS_TILES
+                    out[n] = x
+                    break
+                if g == 0.0:
+                    out[n] = x
+                    break
+                if g < 0.0:
+                    left = x
+                else:
+                    right, right_known = x, True
+                step = x - g / d if d > 0.0 else math.nan
+                if not (left <= step <= right) and not right_known:
+                    at, xe = AT_RIGHT, right
+                    continue
+            else:  # P(right)
+                if not ok:
+                    status[n] = ROOT_NEEDS_TILES
+                    out[n] = x
+                    break
+                if v < 0.0:
                     status[n] = ROOT_NONE
-                    x = lo[n]
+                    out[n] = lo[n]
                     break
                 right_known = True
             new = step if left <= step <= right else 0.5 * (left + right)
             if abs(new - x) <= tol or right - left <= tol:
-                x = new
+                out[n] = new
                 break
             x = new
-            g, d, ok = _force_slope(yarn, e, x, x1, x2, table, spec)
-        out[n] = x
+            at, xe = AT_X, x
 
 
 @njit(cache=True, nogil=True)

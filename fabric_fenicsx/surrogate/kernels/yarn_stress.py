@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -26,9 +27,18 @@ def slack(E1, E2, E_lo, slack1, slack2):
         slack2[k] = _slack(E2[k], E1[k], E_lo)
 
 
-@njit(cache=True, nogil=True)
 def stresses(E1, E2, live, p1, p2, ref, E_lo, beta_over_dt, w, lam_prev, P_v_prev, P_el, P_v,
              lam):
+    """:func:`_stresses` with ``ref`` in Fortran order: the caller passes a column selection
+    (Fortran order) on most steps and a copy of it (C order) on the steps where damage changed;
+    without this numba compiles the kernel once more at the first damage (0.4 s)."""
+    return _stresses(E1, E2, live, p1, p2, np.asfortranarray(ref), E_lo, beta_over_dt, w,
+                     lam_prev, P_v_prev, P_el, P_v, lam)
+
+
+@njit(cache=True, nogil=True)
+def _stresses(E1, E2, live, p1, p2, ref, E_lo, beta_over_dt, w, lam_prev, P_v_prev, P_el, P_v,
+              lam):
     """Yarn stresses of one step at all n points (zero at the points not ``live``).
 
     E1, E2 (n): the strains; live (n): the live points (mask); p1, p2 (m): the surrogate's
