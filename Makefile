@@ -71,7 +71,7 @@ $(PY): | apt
 # numba first, then the package with the test extra, and the cluster extra (dask.distributed)
 # so that the tests of studies on a cluster run too. While pip installs the rest, a short run of
 # the demo's scene compiles numba's kernels into their on-disk cache on the other core
-# (fabric_fenicsx.surrogate.kernels.warm: it needs only numba and Debian's packages), so that the
+# (fabric_fenicsx.impact.warm: it needs only numba and Debian's packages), so that the
 # first run does not compile them (about 25 s); WARM=0 skips it. It ends before setup does; a
 # failed warm-up only means the first run compiles them itself.
 WARM ?= 1
@@ -80,7 +80,7 @@ $(STAMP): pyproject.toml constraints.txt | $(PY) apt
 	@warm=""; log=$$(mktemp); \
 	if [ "$(WARM)" = 1 ]; then \
 	  echo "numba warm-up: compiling the kernels in the background"; \
-	  PYTHONPATH="$(CURDIR)$${PYTHONPATH:+:$$PYTHONPATH}" timeout 300 $(PY) -m fabric_fenicsx.surrogate.kernels.warm > $$log 2>&1 & warm=$$!; \
+	  PYTHONPATH="$(CURDIR)$${PYTHONPATH:+:$$PYTHONPATH}" timeout 300 $(PY) -m fabric_fenicsx.impact.warm > $$log 2>&1 & warm=$$!; \
 	fi; \
 	echo "$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'"; \
 	$(PIP) install $(PIP_FLAGS) -c constraints.txt -e '.[test,cluster]'; rc=$$?; \

@@ -10,7 +10,7 @@ how many signatures each kernel got, the run's wall time and the sum of the comp
     .venv/bin/python benchmarks/cold_compile.py [--warm] [--warmed] [--steps N] [--keep DIR]
 
 ``--warm``: run twice in the same numba cache folder (separate processes) and print the
-second run's compile times too; ``--warmed``: run ``fabric_fenicsx.surrogate.kernels.warm``
+second run's compile times too; ``--warmed``: run ``fabric_fenicsx.impact.warm``
 (what ``make setup`` runs) in the empty cache first, and show what the demo still compiles;
 ``--steps N``: stop the demo after N steps (every kernel is called by step 14, where the first
 compressed yarn calls the tension field's search); ``--keep DIR``: use DIR as the numba cache
@@ -110,7 +110,7 @@ def main() -> int:
         env = dict(os.environ, NUMBA_CACHE_DIR=str(numba_dir), FABRIC_FENICSX_CACHE=str(tmp / "tiles"))
         if a.warmed:
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "fabric_fenicsx.surrogate.kernels.warm"], env=env,
+            subprocess.run([sys.executable, "-m", "fabric_fenicsx.impact.warm"], env=env,
                            check=True)
             print(f"warm-up process {time.perf_counter() - t0:.1f} s")
         runs = ["warmed" if a.warmed else "cold"] + (["warm"] if a.warm else [])

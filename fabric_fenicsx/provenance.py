@@ -24,7 +24,7 @@ PACKAGE = Path(__file__).resolve().parent
 
 MODEL_MODULES = ("material/*.py", "surrogate/*.py", "surrogate/kernels/*.py", "fem/*.py", "impact/*.py")
 """The package's modules (globs relative to it) whose source determines an impact run's numbers."""
-NOT_MODEL = ("impact/output.py", "impact/pictures.py")
+NOT_MODEL = ("impact/output.py", "impact/pictures.py", "impact/warm.py")
 """Modules matched by :data:`MODEL_MODULES` that only write what a run computed."""
 
 

@@ -7,6 +7,6 @@ against:
   :mod:`fabric_fenicsx.material.damage_solver` that the unit cell runs in Python;
 - :mod:`.yarn_stress`: the slack rule, viscous yarn stress and its work for the quadrature-point
   adapter :class:`fabric_fenicsx.fem.yarn_stress.YarnStress`;
-- :mod:`.warm`: not a kernel: a short impact run that fills numba's cache with every kernel a
-  run compiles (``make setup`` runs it beside pip).
+(:mod:`fabric_fenicsx.impact.warm`, a short impact run, fills numba's cache with every kernel a
+run compiles; ``make setup`` runs it beside pip.)
 """

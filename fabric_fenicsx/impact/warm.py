@@ -9,7 +9,7 @@ few steps) calls every kernel of a step with the argument types of a real run, s
 compiles exactly the signatures a run uses and writes them to its cache. The run's mesh, tiles
 and output go to a temporary folder, removed at the end; only numba's (and FFCx's) caches stay.
 
-    python -m fabric_fenicsx.surrogate.kernels.warm [--steps N] [--scene FILE]
+    python -m fabric_fenicsx.impact.warm [--steps N] [--scene FILE]
 
 Prints how long it took and how many functions numba compiled. Exit code 0 also when the run
 fails (a warm-up is an optimisation: the run compiles what is missing), with the error printed.
@@ -25,7 +25,7 @@ import time
 import traceback
 from pathlib import Path
 
-SCENE = Path(__file__).resolve().parents[3] / "demos" / "scenes" / "y90.toml"
+SCENE = Path(__file__).resolve().parents[2] / "demos" / "scenes" / "y90.toml"
 SETTINGS = ("projectile.velocity=57.3", "mesh.h_centre=0.004", "output.png=false",
             "output.progress_interval=0")
 STEPS = 20
