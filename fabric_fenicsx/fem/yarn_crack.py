@@ -128,7 +128,8 @@ class YarnCrack:
     def summary(self) -> dict:
         """Per family (warp, fill): the cells that started a crack (``roots``), that cracked on a
         crack's line (``tips``), that were cut at the start (``given``), and the cell-steps whose
-        new damage was taken back beside a crack (``held``)."""
+        new damage under the tip's law was taken back (``held``: beside a crack, or away from any
+        short of the segment's own strength)."""
         return {name: {"roots": int(np.count_nonzero(self.kind[i] == ROOT)),
                        "tips": int(np.count_nonzero(self.kind[i] == TIP)),
                        "given": int(np.count_nonzero(self.kind[i] == GIVEN)), "held": int(self.held[i])}
