@@ -39,8 +39,10 @@ __all__ = ["YarnCrack", "EXCLUSION", "cell_extents"]
 
 EXCLUSION = 3.0
 """Radius of a cell's neighbourhood, in units of its diameter (longest corner-to-corner
-distance): the cracked cells nearer than this decide whether it may soften. 1.5 diameters hold
-the cells one and two rows beside a crack on a square grid; a new crack starts farther away."""
+distance): the cracked cells nearer than this decide whether it may soften, and a new crack
+starts only farther away. On a mesh not aligned with the yarns the strain beside a crack's tip
+can exceed that on its line a few cells away: with 1.5 diameters a second crack started 2.5 mm
+beside the first ahead of its tip on the 30-degree 1 mm tear-test mesh; 3 hold it on the line."""
 
 UNCRACKED, ROOT, TIP, GIVEN = 0, 1, 2, 3
 """What a cell is in a family's crack: not cracked; the start of a crack (the segment's law);
@@ -206,8 +208,9 @@ class YarnCrack:
         return b, redo
 
     def _one_per_neighbourhood(self, family: int, cells: np.ndarray) -> np.ndarray:
-        """Of cells starting cracks in the same step, those not near an earlier one (by index: a
-        deterministic order) or crossed by its line."""
+        """Of cells starting cracks of ``family`` in the same step, those not within the
+        neighbourhood of one kept before them (in index order: deterministic); the others wait,
+        and the next step sees the new crack near them."""
         kept = []
         for c in cells:
             ok = True
