@@ -108,7 +108,6 @@ def build_strength_field(scene: Scene, fabric: Fabric, membrane, comm):
     return scatter, (mu_crit, scale), type(local)(np.array(lo), np.array(hi))
 
 
-
 def _yarn_crack(scene: Scene, fabric: Fabric, membrane, laws, comm):
     """The yarn-crack rule (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`) on the membrane's
     cells, over the points' segment laws ``laws`` (None: the fabric's)."""

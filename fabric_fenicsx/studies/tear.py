@@ -5,9 +5,10 @@ moves at a constant speed along x (default 5 m/s, a strain rate of 83 /s, as the
 100 /s), so that the warp carries the load. A slit cuts the warp yarns along y at x = 0: from the
 bottom edge (``notch = "edge"``) or about the centre (``"centre"``), made by removing the cells
 it crosses (``slit_cut = "cells"``) or by cutting their warp yarns only (``"warp"``: alpha1 = 0,
-the fill yarns along the slit kept, a crack band as a broken warp leaves it). The membrane, the reduced element with its hourglass control, the surrogate, the
-damping and the removal rules (deletion when both yarns are broken, erosion at
-``erosion_strain``) are the impact scenes'.
+the fill yarns along the slit kept, a crack band as a broken warp leaves it). The membrane, the
+reduced element with its hourglass control, the surrogate, the damping and the removal rules
+(deletion when both yarns are broken, erosion at ``erosion_strain``) are the impact scenes'; the
+failure rule is the thesis's or a candidate (``failure``: ``yarn_crack``, ``yarn_average``).
 
 The panel is meshed with cells of one size ``h`` (the tear's tip meets the same cells all the
 way) in families that tell the cells' orientation from their shape:
@@ -38,6 +39,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack")
+"""The failure rules a pull can use: the scenes' two (``material.failure``) and the yarn average."""
 
 __all__ = ["TearSetup", "parse_family", "slit_cells", "path_angle", "work_per_length", "TearTest"]
 
