@@ -94,7 +94,7 @@ def _run(args, plan, setup, out: Path) -> int:
 
     from fabric_fenicsx.impact.trouble import STEP_ERRORS
     from fabric_fenicsx.material.fabric import zylon_as
-    from fabric_fenicsx.material.scatter import StrengthScatter
+    from fabric_fenicsx.material.scatter import DamageRange, StrengthScatter
     from fabric_fenicsx.studies import tear, tear_report
     from fabric_fenicsx.surrogate.table import Surrogate
 
@@ -128,11 +128,8 @@ def _run(args, plan, setup, out: Path) -> int:
             continue
         test = tear.TearTest(fabric, family, h, setup, mesh_file=mesh_file)
         laws = {s: None if s < 0 else test.laws(StrengthScatter(args.scatter, seed=s)) for s in todo}
-        ranges = [r for r in (test.damage_range(law) for law in laws.values()) if r is not None]
-        if surrogate is None or ranges:
-            from fabric_fenicsx.material.scatter import DamageRange
-            rng = (DamageRange(np.min([r.mu_crit_min for r in ranges], axis=0),
-                               np.max([r.mu_complete_max for r in ranges], axis=0)) if ranges else None)
+        rng = DamageRange.union(*(test.damage_range(law) for law in laws.values()))
+        if surrogate is None or rng is not None:
             surrogate = Surrogate(fabric, progress=False, workers=1, damage_range=rng)
         for seed in todo:
             try:

@@ -12,7 +12,7 @@ from fabric_fenicsx.impact.output import cell_corners
 from fabric_fenicsx.impact.scene import Scene, SceneError, load_fabric
 from fabric_fenicsx.impact.term_specs import build_scene_terms
 from fabric_fenicsx.material.fabric import Fabric, zylon_as
-from fabric_fenicsx.material.scatter import StrengthScatter, cell_laws
+from fabric_fenicsx.material.scatter import DamageRange, StrengthScatter, cell_laws
 
 __all__ = ["EDGE_TAGS", "build_fabric", "build_mesh", "build_terms", "build_projectile", "quadrature_degree",
            "build_strength_field", "FAILURE_RULES", "build_failure_rule"]
@@ -138,8 +138,4 @@ def build_failure_rule(scene: Scene, fabric: Fabric, membrane, laws, damage_rang
     rule = builder(scene, fabric, membrane, laws, comm) if builder is not None else None
     if rule is None:
         return None, damage_range
-    own = rule.damage_range()
-    if damage_range is None:
-        return rule, own
-    return rule, type(own)(np.minimum(own.mu_crit_min, damage_range.mu_crit_min),
-                           np.maximum(own.mu_complete_max, damage_range.mu_complete_max))
+    return rule, DamageRange.union(rule.damage_range(), damage_range)

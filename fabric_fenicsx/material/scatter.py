@@ -187,6 +187,25 @@ class DamageRange:
     mu_crit_min: np.ndarray
     mu_complete_max: np.ndarray
 
+    @classmethod
+    def of_laws(cls, fabric, mu_crit: np.ndarray, scale: np.ndarray) -> "DamageRange":
+        """The range of per-point laws ``mu_crit``, ``scale`` (n, 2), and of the fabric's own."""
+        lo = np.array([min(fabric.yarns[i].mu_crit, float(mu_crit[:, i].min(initial=np.inf)))
+                       for i in range(2)])
+        hi = np.array([float(failure_stretch(fabric.damage, mu_crit[:, i], scale[:, i]).max(initial=0.0))
+                       for i in range(2)])
+        return cls(lo, hi)
+
+    @staticmethod
+    def union(*ranges: "DamageRange | None") -> "DamageRange | None":
+        """The smallest range holding every given one (None, the fabric's own law, adds nothing;
+        None if all are None)."""
+        ranges = [r for r in ranges if r is not None]
+        if not ranges:
+            return None
+        return DamageRange(np.min([r.mu_crit_min for r in ranges], axis=0),
+                           np.max([r.mu_complete_max for r in ranges], axis=0))
+
 
 @dataclass(frozen=True)
 class StrengthScatter:
@@ -249,13 +268,7 @@ class StrengthScatter:
     def damage_range(self, fabric, mu_crit: np.ndarray, scale: np.ndarray) -> DamageRange | None:
         """The :class:`DamageRange` of per-point laws ``mu_crit``, ``scale`` (n, 2) (None when
         the scatter is off: the fabric's own law)."""
-        if not self.on:
-            return None
-        lo = np.array([min(fabric.yarns[i].mu_crit, float(mu_crit[:, i].min(initial=np.inf)))
-                       for i in range(2)])
-        hi = np.array([float(failure_stretch(fabric.damage, mu_crit[:, i], scale[:, i]).max(initial=0.0))
-                       for i in range(2)])
-        return DamageRange(lo, hi)
+        return DamageRange.of_laws(fabric, mu_crit, scale) if self.on else None
 
 
 # --------------------------------------------------------------------------- cells

@@ -269,12 +269,9 @@ class TearTest:
             return self.crack_rule(laws).damage_range()
         if laws is None:
             return None
-        from fabric_fenicsx.material.scatter import DamageRange, failure_stretch
+        from fabric_fenicsx.material.scatter import DamageRange
 
-        mu_crit, scale = laws
-        return DamageRange(np.minimum([self.fabric.warp.mu_crit, self.fabric.fill.mu_crit], mu_crit.min(axis=0)),
-                           np.array([failure_stretch(self.fabric.damage, mu_crit[:, i], scale[:, i]).max()
-                                     for i in range(2)]))
+        return DamageRange.of_laws(self.fabric, *laws)
 
     def laws(self, scatter):
         """The cell laws (mu_crit, scale), each (n_points, 2), of ``scatter`` on this mesh."""
