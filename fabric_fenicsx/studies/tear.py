@@ -296,6 +296,20 @@ class TearTest:
         y = self.centres[cells, 1]
         return max(0.0, float(np.max(y if self.setup.notch == "edge" else np.abs(y), initial=-np.inf)) - y1)
 
+    def crack_away(self, rule, t: float, length: float) -> dict | None:
+        """The first crack that the yarn-crack ``rule`` started of its own (a root) away from the
+        slit's line: where, when and how far the tear had run, or None. This membrane carries load
+        only along its yarns, so the tear's tip does not concentrate the strain: a yarn may break
+        wherever the cells' strain is highest along it, at a clamp as well (docs/tear_test.md)."""
+        from fabric_fenicsx.fem.yarn_crack import ROOT
+
+        family, cells = np.nonzero(rule.kind == ROOT)
+        if cells.size == 0:
+            return None
+        k = int(np.argmin(np.abs(self.centres[cells, 0])))
+        return {"family": ("warp", "fill")[family[k]], "x": float(self.centres[cells[k], 0]),
+                "y": float(self.centres[cells[k], 1]), "t": float(t), "tear_length": float(length)}
+
     def pull(self, surrogate, laws=None, progress=None) -> dict:
         """Pull the panel with the cell laws ``laws`` (None: the fabric's own law) until the tear
         has run through, the force has fallen below a tenth of its peak, or the right edge has
@@ -313,8 +327,9 @@ class TearTest:
                               straight_modulus=self.k_straight, laws=laws)
         if s.failure == "yarn_average":
             material.damage_drive = self._yarn_average()
+        rule = None
         if s.failure == "yarn_crack":
-            material.failure = self.crack_rule(laws)
+            material.failure = rule = self.crack_rule(laws)
         for term in m.terms:
             if term.follows_integrity:
                 term.follow(lambda: material.state, material.tension)
@@ -333,7 +348,7 @@ class TearTest:
         E_fail = surrogate.E_fail[0]
         t_max = 3.0 * (math.sqrt(1 + 2 * E_fail) - 1.0) * s.side / s.speed
         npc = m.n_points_per_cell
-        history, peak, first = [], 0.0, None
+        history, peak, first, elsewhere = [], 0.0, None, None
         end = "time limit"
         while cd.time < t_max:
             cd.step(dt)
@@ -357,6 +372,8 @@ class TearTest:
             peak = max(peak, force)
             if first is None and length > 0.0:
                 first = force
+            if rule is not None and elsewhere is None:
+                elsewhere = self.crack_away(rule, cd.time, length)
             if progress is not None and cd.n_steps % 2000 == 0:
                 progress(f"t = {cd.time * 1e3:.3f} ms, force {force:.1f} N, tear {length * 1e3:.1f} mm")
             if length >= s.ligament - 1.5 * self.h:
@@ -365,6 +382,10 @@ class TearTest:
             if first is not None and force < 0.1 * peak:
                 end = "force fell below a tenth of its peak"
                 break
+        if elsewhere is not None:
+            end += (f"; a crack of the {elsewhere['family']} started away from the tear at "
+                    f"({elsewhere['x'] * 1e3:.1f}, {elsewhere['y'] * 1e3:.1f}) mm, t = {elsewhere['t'] * 1e3:.3f} ms, "
+                    f"with the tear at {elsewhere['tear_length'] * 1e3:.1f} mm")
         hist = np.array(history).reshape(-1, 4)
         broken_final = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
         tear_cells = self.tear_cells(broken_final)
@@ -379,7 +400,7 @@ class TearTest:
                 "deleted": int(removal.deleted_cells.sum()), "eroded": int(removal.eroded_cells.sum()),
                 "damage_dissipation": e["damage_dissipation"], "erosion_energy": e["erosion_energy"],
                 "viscous_dissipation": e["viscous_dissipation"], "end": end, "steps": cd.n_steps,
-                "seconds": time.perf_counter() - t0, "history": hist,
+                "seconds": time.perf_counter() - t0, "history": hist, "crack_away": elsewhere,
                 "cells": {"corners": self.corners, "alpha1": material.alpha1.reshape(-1, npc).min(axis=1),
                           "removed": ~removal.live_cells, "slit": np.isin(np.arange(m.n_cells), self.slit),
                           "tear": np.isin(np.arange(m.n_cells), tear_cells)}}

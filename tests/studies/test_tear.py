@@ -81,6 +81,22 @@ def test_the_tear_is_the_broken_cells_joined_to_the_slit():
     assert test.tear_length(chain) == pytest.approx(y[chain].max() - tip)
 
 
+def test_a_crack_started_away_from_the_slit_is_reported_where_and_when():
+    from fabric_fenicsx.fem.yarn_crack import ROOT
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.studies.tear import TearTest
+
+    test = TearTest(zylon_as(), "aligned", 0.004, TearSetup(failure="yarn_crack"))
+    rule = test.crack_rule()
+    assert test.crack_away(rule, 1e-4, 0.0) is None          # the slit is given, not started
+    x, y = test.centres[:, 0], test.centres[:, 1]
+    clamp, beside = int(np.argmin(np.hypot(x + 0.028, y - 0.01))), int(np.argmin(np.hypot(x - 0.012, y)))
+    rule.kind[0, [clamp, beside]] = ROOT
+    away = test.crack_away(rule, 2e-4, 0.015)
+    assert away["family"] == "warp" and away["t"] == 2e-4 and away["tear_length"] == 0.015
+    assert (away["x"], away["y"]) == (x[beside], y[beside])   # of two, the one nearer the slit's line
+
+
 def test_a_pull_on_the_aligned_grid_tears_straight_along_the_fill():
     from fabric_fenicsx.material.fabric import zylon_as
     from fabric_fenicsx.studies.tear import TearTest
