@@ -80,6 +80,7 @@ class YarnStress:
         self.E1_prev, self.E2_prev = self.E1, self.E2
         self.lam = np.ones((2, n))
         self.E_relaxed = np.zeros((2, n))   # the tension field's strains of the last update
+        self.E_peak = np.zeros((2, n))      # each point's largest yarn strains while live
         self.P_el = np.zeros((2, n))
         self.P_v = np.zeros((2, n))
         self.alpha1, self.alpha2 = np.ones(n), np.ones(n)
@@ -223,6 +224,7 @@ class YarnStress:
         sel = self._sel   # the live points: a slice while none was removed (no gathers)
         a1h, a2h = self.alpha1, self.alpha2
         e1, e2 = E1[sel], E2[sel]
+        self._keep_peak(sel, e1, e2)
         changed = np.zeros(0, np.int64)
         r1, r2 = self._relax(e1, e2, a1h[sel], a2h[sel], self.E_relaxed[:, sel])
         self.E_relaxed[0, sel], self.E_relaxed[1, sel] = r1, r2
@@ -277,6 +279,14 @@ class YarnStress:
         self.lam, self.P_el, self.P_v = lam, P_el, P_v
         self.alpha1, self.alpha2 = a1, a2
         return P_el[0] + P_v[0], P_el[1] + P_v[1]
+
+    def _keep_peak(self, sel, e1, e2) -> None:
+        """Raise :attr:`E_peak` to the live points' strains ``e1``, ``e2`` (at ``sel``)."""
+        for row, e in zip(self.E_peak, (e1, e2)):
+            if isinstance(sel, slice):
+                np.maximum(row, e, out=row)
+            else:
+                row[sel] = np.maximum(row[sel], e)
 
     def tension(self) -> np.ndarray:
         """Yarn tensions P_i / lambda_i (N/m, shape (2, n)) at every owned point after the last

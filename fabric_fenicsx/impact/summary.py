@@ -9,6 +9,8 @@ docs/impact_model.md.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from mpi4py import MPI
 
@@ -113,11 +115,33 @@ def build_summary(sim, end_reason: str, n_steps: int, dt: float, wall: float,
                     "xi_mesh": sim.xi_mesh,
                     "share_of_absorbed": b.viscous / absorbed if absorbed > 0 else 0.0},
         "scatter": _scatter_section(sim),
+        "largest_yarn_strain": _largest_strain_section(sim),
         "failure": {"rule": sc.material.failure,
                     **({"cracks": sim.failure.summary()} if getattr(sim, "failure", None) is not None else {})},
         "settings": sc.to_dict(),
         **code_fingerprint(),
     }
+
+
+def _largest_strain_section(sim) -> dict | None:
+    """Per yarn family the largest Green strain along it that a live point reached over the run,
+    and where (reference centre of its cell, distance from the impact point; collective): with
+    damage off, where and how near the yarns come to their strength (the segment's onset), e.g.
+    at the projectile's edge or at a clamp. None where the material keeps no such record."""
+    peak = getattr(sim.material, "E_peak", None)
+    if peak is None:
+        return None
+    centres, npc = sim._cell_centres(), sim.membrane.n_points_per_cell
+    out = {}
+    for i, family in enumerate(("warp", "fill")):
+        mine = (-math.inf, 0.0, 0.0)
+        if peak[i].size:
+            k = int(np.argmax(peak[i]))
+            mine = (float(peak[i][k]), float(centres[k // npc][0]), float(centres[k // npc][1]))
+        value, x, y = max(sim.comm.allgather(mine))
+        out[family] = {"green_strain": value, "position": [x, y],
+                       "radius": float(np.hypot(x - sim.axis_xy[0], y - sim.axis_xy[1]))}
+    return out
 
 
 def _scatter_section(sim) -> dict:

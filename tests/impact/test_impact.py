@@ -534,7 +534,7 @@ if sim.comm.rank == 0:
 """
 DIGEST = ("end_reason", "scatter", "residual_velocity", "energy_error", "n_steps", "deleted_cells", "eroded_cells",
           "free_nodes", "perforated", "end_time", "n_ranks", "absorbed_energy", "damage_onset_position",
-          "damage_onset_radius", "damaged_cells", "damage_extent_radius", "removal")
+          "damage_onset_radius", "damaged_cells", "damage_extent_radius", "removal", "largest_yarn_strain")
 DAMAGE_SCENE = {**TINY, "material": {"angle": 90.0, "damage": True},
                 "projectile": {"diameter": 0.02, "velocity": 200.0, "mass": 0.005},
                 "boundary": {"clamped": ["left", "right", "bottom", "top"]}}
@@ -603,6 +603,14 @@ def test_serial_and_two_ranks_agree_with_damage_deletion_erosion_and_a_plug(dama
     assert s2["damaged_cells"] == s1["damaged_cells"] >= s1["deleted_cells"] + s1["eroded_cells"]
     assert s2["damage_extent_radius"] == pytest.approx(s1["damage_extent_radius"], rel=1e-12)
     assert s1["damage_onset_radius"] <= s1["damage_extent_radius"] < 0.04 * math.sqrt(2)
+    # the largest yarn strain a live point reached, over both ranks: the eroded cells' (erosion at
+    # a yarn Green strain of 1.0, seen in the update before the cell left)
+    for family in ("warp", "fill"):
+        assert s2["largest_yarn_strain"][family]["green_strain"] == pytest.approx(
+            s1["largest_yarn_strain"][family]["green_strain"], rel=1e-9)
+    peak = s1["largest_yarn_strain"]["warp"]
+    assert max(peak["green_strain"], s1["largest_yarn_strain"]["fill"]["green_strain"]) >= 1.0
+    assert peak["radius"] == pytest.approx(math.hypot(*peak["position"]), rel=1e-12)
     assert sum(r["cells"] for r in r2) == r1[0]["cells"]
     assert sum(r["removed_cells"] for r in r2) == r1[0]["removed_cells"] == s1["deleted_cells"] + s1["eroded_cells"]
     assert all(r["free_nodes"] > 0 for r in r2), r2          # the plug spans both ranks
