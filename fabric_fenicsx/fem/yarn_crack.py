@@ -88,6 +88,12 @@ class YarnCrack:
             self.at[i] = self.centres @ np.asarray(d, float)
         self.kind = np.zeros((2, n_cells), np.int8)
         self.line = np.full((2, n_cells), np.nan)
+        # each cell's last classification against a family's cracks, valid until a crack is added
+        # within the largest radius of it (cracks are only ever added: see _classified)
+        self._state = np.zeros((2, n_cells), np.int8)
+        self._state_line = np.zeros((2, n_cells))
+        self._stale = np.ones((2, n_cells), dtype=bool)
+        self._reach = float(self.radius.max(initial=0.0))
         # the law of equal energy at a crack's tip, per point (cells' extents repeated per point)
         self.tip = (np.empty_like(self.base[0]), np.empty_like(self.base[1]))
         for i in range(2):
@@ -126,6 +132,7 @@ class YarnCrack:
         cells = np.asarray(cells, np.int64)
         self.kind[family, cells] = GIVEN
         self.line[family, cells] = float(line)
+        self._cracks_added(family, cells)
 
     def summary(self) -> dict:
         """Per family (warp, fill): the cells that started a crack (``roots``), that cracked on a
@@ -140,6 +147,23 @@ class YarnCrack:
     def laws(self, points) -> dict:
         """The damage laws of ``points`` (indices or a slice) for the surrogate's update."""
         return {"critical_stretch": self.mu_crit[:, points], "softening_scale": self.scale[:, points]}
+
+    def _cracks_added(self, family: int, cells: np.ndarray) -> None:
+        """Mark stale the classification of every cell whose neighbourhood may hold one of the
+        newly cracked ``cells`` of ``family`` (all within the largest radius: a superset)."""
+        if cells.size:
+            near = self.tree.query_ball_point(self.centres[cells], self._reach)
+            self._stale[family, np.fromiter(chain.from_iterable(near), np.int64)] = True
+
+    def _classified(self, family: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_classify`, from the last classification where no crack was added near since:
+        a cell's state depends only on the cracked cells within its radius, and a crack once
+        added stays, so the stored state is exactly what classifying again would give."""
+        stale = cells[self._stale[family, cells]]
+        if stale.size:
+            self._state[family, stale], self._state_line[family, stale] = self._classify(family, stale)
+            self._stale[family, stale] = False
+        return self._state[family, cells], self._state_line[family, cells].copy()
 
     def _classify(self, family: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(state, line) of candidate ``cells`` against the cracks of ``family`` now: TIP with the
@@ -179,9 +203,10 @@ class YarnCrack:
             if not new.any():
                 continue
             cells = np.unique(cell_of[new])
-            state, line = self._classify(i, cells)
+            state, line = self._classified(i, cells)
             tips = cells[state == TIP]
             self.kind[i, tips], self.line[i, tips] = TIP, line[state == TIP]
+            self._cracks_added(i, tips)
             held = cells[state == UNCRACKED]
             roots = cells[state == ROOT]
             if roots.size:
@@ -194,6 +219,7 @@ class YarnCrack:
                 started = np.unique(cell_of[at][full[i] < a_old[i, at]])
                 started = self._one_per_neighbourhood(i, started)
                 self.kind[i, started], self.line[i, started] = ROOT, self.at[i, started]
+                self._cracks_added(i, started)
                 go = np.isin(cell_of[at], started)
                 p = points[at[go]]
                 self.mu_crit[i, p], self.scale[i, p] = self.base[0][i, p], self.base[1][i, p]

@@ -105,3 +105,33 @@ def test_the_rule_refuses_more_than_one_rank():
 
     with pytest.raises(ValueError, match="one rank"):
         YarnCrack(_grid(2, 1e-3), (X, Y), zylon_as(), np.full((2, 4), 1.03), np.ones((2, 4)), comm=TwoRanks())
+
+
+def test_the_stored_classification_is_what_classifying_again_gives_as_cracks_grow():
+    """A cell's state is kept from step to step until a crack is added near it: over a run of
+    random strains on a turned grid, where tips and roots are added by the rule itself, every
+    step's stored states equal a fresh classification of every cell."""
+    h, n = 1e-3, 24
+    t = math.radians(30)
+    turn = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]])
+    corners = _grid(n, h) @ turn
+    rule = _rule(corners)
+    centres = corners.mean(axis=1)
+    rule.add_crack(np.flatnonzero(np.abs(centres[:, 0] - centres[:, 0].mean()) < 0.6 * h)[:4], 0, centres[:, 0].mean())
+    rng = np.random.default_rng(3)
+    points, cells = np.arange(n * n), np.arange(n * n)
+    tip, full = rule.tip[0][0].min() - 1.0, rule.base[0][0, 0] - 1.0
+    a = np.ones((2, n * n))
+    surrogate = ThresholdSurrogate()
+    added = 0
+    for step in range(40):
+        E1 = rng.uniform(0.0, tip + 1.2 * (full - tip), n * n) * (rng.random(n * n) < 0.05)
+        E2 = np.zeros(n * n)
+        b_new = np.stack(surrogate.update(E1, E2, a[0], a[1], *rule.laws(points).values())[2:])
+        before = np.count_nonzero(rule.kind[0])
+        a, _ = rule.admit(surrogate, points, E1, E2, a, b_new)
+        added += np.count_nonzero(rule.kind[0]) - before
+        stored, fresh = rule._classified(0, cells), rule._classify(0, cells)
+        assert np.array_equal(stored[0], fresh[0]), step
+        assert np.array_equal(stored[1], fresh[1]), step
+    assert added > 5       # cracks did grow (tips and roots) while the states were reused
