@@ -24,7 +24,10 @@ This rule gives the cells both, per yarn family i (warp 0, fill 1), with directi
 
 The rule sits between the surrogate's damage update and the stresses (``YarnStress.failure``):
 it hands the points their laws (:meth:`YarnCrack.laws`), then accepts or takes back each new
-damage (:meth:`YarnCrack.admit`). Removal (deletion, erosion) is unchanged. One rank: the cracks
+damage (:meth:`YarnCrack.admit`). A cell found far from any crack and short of the segment's
+strength is asked with the segment's law from then on, until a crack is added near it: the damage
+the tip's law would give there is taken back anyway, and asking twice a step cost 3 to 5 times
+a step's constitutive update (docs/ballistic_limit.md). Removal (deletion, erosion) is unchanged. One rank: the cracks
 near a cell on another rank are not exchanged; the rule refuses a communicator of more.
 """
 from __future__ import annotations
@@ -94,6 +97,7 @@ class YarnCrack:
         self._state_line = np.zeros((2, n_cells))
         self._stale = np.ones((2, n_cells), dtype=bool)
         self._reach = float(self.radius.max(initial=0.0))
+        self._on_segment = np.zeros((2, n_cells), dtype=bool)   # asked with the segment's law
         # the law of equal energy at a crack's tip, per point (cells' extents repeated per point)
         self.tip = (np.empty_like(self.base[0]), np.empty_like(self.base[1]))
         for i in range(2):
@@ -137,8 +141,9 @@ class YarnCrack:
     def summary(self) -> dict:
         """Per family (warp, fill): the cells that started a crack (``roots``), that cracked on a
         crack's line (``tips``), that were cut at the start (``given``), and the cell-steps whose
-        new damage under the tip's law was taken back (``held``: beside a crack, or away from any
-        short of the segment's own strength)."""
+        new damage was taken back (``held``: beside a crack; or away from any and short of the
+        segment's own strength, counted once: such a cell is then asked with the segment's law,
+        under which it has no new damage to take back, until a crack is added near it)."""
         return {name: {"roots": int(np.count_nonzero(self.kind[i] == ROOT)),
                        "tips": int(np.count_nonzero(self.kind[i] == TIP)),
                        "given": int(np.count_nonzero(self.kind[i] == GIVEN)), "held": int(self.held[i])}
@@ -153,7 +158,18 @@ class YarnCrack:
         newly cracked ``cells`` of ``family`` (all within the largest radius: a superset)."""
         if cells.size:
             near = self.tree.query_ball_point(self.centres[cells], self._reach)
-            self._stale[family, np.fromiter(chain.from_iterable(near), np.int64)] = True
+            near = np.fromiter(chain.from_iterable(near), np.int64)
+            self._stale[family, near] = True
+            back = near[self._on_segment[family, near] & (self.kind[family, near] == UNCRACKED)]
+            self._use_law(family, np.unique(back), segment=False)
+
+    def _use_law(self, family: int, cells: np.ndarray, segment: bool) -> None:
+        """Ask the points of ``cells`` with the segment's law (``segment``) or the tip's for
+        ``family`` from the next update on."""
+        p = (cells[:, None] * self.npc + np.arange(self.npc)).ravel()
+        law = self.base if segment else self.tip
+        self.mu_crit[family, p], self.scale[family, p] = law[0][family, p], law[1][family, p]
+        self._on_segment[family, cells] = segment
 
     def _classified(self, family: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`_classify`, from the last classification where no crack was added near since:
@@ -221,11 +237,14 @@ class YarnCrack:
                 self.kind[i, started], self.line[i, started] = ROOT, self.at[i, started]
                 self._cracks_added(i, started)
                 go = np.isin(cell_of[at], started)
-                p = points[at[go]]
-                self.mu_crit[i, p], self.scale[i, p] = self.base[0][i, p], self.base[1][i, p]
+                self._use_law(i, started, segment=True)
                 b[:, at[go]] = full[:, go]
                 redo.append(at[go])
-                held = np.concatenate((held, np.setdiff1d(roots, started)))
+                waiting = np.setdiff1d(roots, started)
+                # far from any crack and short of the segment's strength: asked with the segment's
+                # law until a crack is added near (the tip's law would only be taken back again)
+                self._use_law(i, waiting[~self._stale[i, waiting]], segment=True)
+                held = np.concatenate((held, waiting))
             self.held[i] += held.size
             back = np.flatnonzero(np.isin(cell_of, held) & new)
             b[i, back] = a_old[i, back]
