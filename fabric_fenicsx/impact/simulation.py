@@ -188,6 +188,7 @@ class ImpactSimulation:
                          if out.png or out.animation else None)
         self.ledger = EnergyLedger()
         self.clock = _Clock()
+        self._reach = None   # trouble.attached_reach of the scene, taken at the first check
         self._tile_seconds0 = self._tile_seconds()
         self.build_seconds = time.perf_counter() - t_build
         terms = ", ".join(t.name for t in m.terms)
@@ -475,7 +476,17 @@ class ImpactSimulation:
         kinetic = energy.kinetic + KE_p
         W_el = energy.internal - ledger.viscous - energy.dissipated
         moved = maxima["attached_displacement"]
-        reach = trouble.attached_reach(sc.mesh.side, self.removal.erosion_strain)
+        if self._reach is None:
+            self._reach = trouble.attached_reach(sc.mesh.side, self.removal.erosion_strain)
+        reach = self._reach
+        if (kinetic > _BLOW_UP_ENERGY * self.KE0 or W_el < -_NEGATIVE_WORK * self.KE0 or moved > reach
+                or ledger.error_now > sc.run.energy_tolerance):
+            self._stop_on_trouble(loop, t_n, kinetic, W_el, moved, reach)
+
+    def _stop_on_trouble(self, loop: _Loop, t_n: float, kinetic: float, W_el: float, moved: float,
+                         reach: float) -> None:
+        """The :class:`ImpactError` of :meth:`_check_trouble` once one of its tests tripped."""
+        ledger, sc = self.ledger, self.scene
         tripped = [what for bad, what in (
             (kinetic > _BLOW_UP_ENERGY * self.KE0,
              f"kinetic energy {kinetic:.4g} J > {_BLOW_UP_ENERGY:g} x the impact energy KE_0 = "
