@@ -313,7 +313,7 @@ class CentralDifference:
         local[2] = -0.5 * np.dot(res_c + self._res_c, self._du[c])
         if f_diss is not None:
             local[4] = 0.5 * np.dot(f_diss + self._f_diss, self._du)
-        local[6] = float(np.sum(E1) + np.sum(E2) + np.sum(P1) + np.sum(P2))
+        local[6] = float(_sum(E1) + _sum(E2) + _sum(P1) + _sum(P2))
         total = self._total
         m.comm.Allreduce(local, total, op=MPI.SUM)
         if not np.isfinite(total).all():
@@ -345,6 +345,11 @@ class CentralDifference:
         tm["assembly"] += t3 - t2
         tm["rest"] += t4 - t3
         return self.energy
+
+
+def _sum(a) -> float:
+    """np.sum(a) (the same pairwise sum) without its dispatch for an ndarray."""
+    return a.sum() if type(a) is np.ndarray else np.sum(a)
 
 
 @njit(cache=True, nogil=True)

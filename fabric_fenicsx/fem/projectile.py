@@ -83,7 +83,7 @@ def _points(name: str, x: Any) -> np.ndarray:
     arr = np.asarray(x, dtype=float)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f"{name} must have shape (n, 3), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
         raise ValueError(f"{name} has non-finite entries, first at row {bad}: {arr[bad]}")
     return arr
@@ -93,8 +93,9 @@ def _per_node(name: str, value: Any, n: int) -> np.ndarray:
     arr = np.asarray(value, dtype=float)
     if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != n):
         raise ValueError(f"{name} must be a scalar or have shape ({n},), got {arr.shape}")
-    arr = np.broadcast_to(arr, (n,))
-    if not np.all(np.isfinite(arr) & (arr > 0.0)):
+    if arr.ndim == 0:
+        arr = np.broadcast_to(arr, (n,))
+    if not (np.isfinite(arr) & (arr > 0.0)).all():
         bad = int(np.flatnonzero(~(np.isfinite(arr) & (arr > 0.0)))[0])
         raise ValueError(f"{name} must be finite and > 0, got {arr[bad]!r} at node {bad}")
     return arr
