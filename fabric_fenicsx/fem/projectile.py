@@ -127,6 +127,15 @@ def _gap_and_normal(x, z_face, R, half, fillet, ax, ay, gap, normal):
         normal[p, 2] = -gy if front else gy
 
 
+@njit(cache=True, nogil=True)
+def _in_cylinder(x, z_lo, z_hi, ax, ay, r2, inside):
+    """:meth:`Projectile.candidates` per point (compiled: it runs at every step): z_lo < z <
+    z_hi and (x - ax)^2 + (y - ay)^2 < r2, the same operations as the array expression."""
+    for p in range(x.shape[0]):
+        dx, dy, z = x[p, 0] - ax, x[p, 1] - ay, x[p, 2]
+        inside[p] = (z > z_lo) & (z < z_hi) & (dx * dx + dy * dy < r2)
+
+
 @dataclass(frozen=True)
 class Projectile:
     """Rigid flat-ended cylinder with an optionally filleted impacting edge (thesis Sec. 4.1).
@@ -199,10 +208,10 @@ class Projectile:
         """Boolean mask of the points inside the bounding cylinder of the solid: the only ones
         that can have g < 0."""
         zf = self._z_face(z_face)
-        dx = x[:, 0] - self.axis_xy[0]
-        dy = x[:, 1] - self.axis_xy[1]
-        z = x[:, 2]
-        return (z > zf) & (z < zf + self.length) & (dx * dx + dy * dy < self.radius**2)
+        x = np.asarray(x, dtype=float)
+        inside = np.empty(x.shape[0], dtype=bool)
+        _in_cylinder(x, zf, zf + self.length, self.axis_xy[0], self.axis_xy[1], self.radius**2, inside)
+        return inside
 
     def may_touch(
         self, fabric_z_max: float, z_face: float | None = None, margin: float = 0.0

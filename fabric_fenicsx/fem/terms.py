@@ -107,6 +107,11 @@ class MembraneTerm:
         last :meth:`prepare`; return its stored energy (J) in those cells."""
         raise NotImplementedError
 
+    def cell_energy(self, m) -> float:
+        """A :attr:`per_cell` term: the stored energy (J) :meth:`add_cell_forces` returns, at
+        the state of the last :meth:`prepare` (override to skip the forces)."""
+        return self.add_cell_forces(m, np.zeros((m.u.x.array.size // 3, 3)))
+
 
 class YarnTerm(MembraneTerm):
     """The yarn stresses of the unit cell: P : Grad v with P = P1 l1 (x) L1 + P2 l2 (x) L2
@@ -297,6 +302,9 @@ class HourglassControl(MembraneTerm):
     def add_cell_forces(self, m, forces: np.ndarray) -> float:
         return _add_hourglass_forces(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3), forces)
 
+    def cell_energy(self, m) -> float:
+        return _hourglass_energy(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3))
+
     def wave_modulus(self) -> float:
         return self.k
 
@@ -360,5 +368,25 @@ def _add_hourglass_forces(M, nodes, stiffness, u, forces):
             forces[na, 0] += fx
             forces[na, 1] += fy
             forces[na, 2] += fz
+            energy += 0.5 * (fx * u[na, 0] + fy * u[na, 1] + fz * u[na, 2])
+    return energy
+
+
+@njit(cache=True, nogil=True)
+def _hourglass_energy(M, nodes, stiffness, u):
+    """The energy :func:`_add_hourglass_forces` returns (the same operations in the same
+    order), without adding the forces anywhere."""
+    energy = 0.0
+    for c in range(M.shape[0]):
+        for a in range(4):
+            fx = fy = fz = 0.0
+            for b in range(4):
+                in_plane = stiffness[c, 0, 0] * M[c, 0, a, b] + stiffness[c, 1, 0] * M[c, 1, a, b]
+                out_of_plane = stiffness[c, 0, 1] * M[c, 0, a, b] + stiffness[c, 1, 1] * M[c, 1, a, b]
+                nb = nodes[c, b]
+                fx += in_plane * u[nb, 0]
+                fy += in_plane * u[nb, 1]
+                fz += out_of_plane * u[nb, 2]
+            na = nodes[c, a]
             energy += 0.5 * (fx * u[na, 0] + fy * u[na, 1] + fz * u[na, 2])
     return energy

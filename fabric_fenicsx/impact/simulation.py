@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 from mpi4py import MPI
 
-from fabric_fenicsx.fem.contact_kernel import near_nodes
+from fabric_fenicsx.fem.contact_kernel import count_touching, near_nodes
 from fabric_fenicsx.fem.explicit import CentralDifference
 from fabric_fenicsx.fem.membrane import Membrane
 from fabric_fenicsx.fem.mesh import edge_dofs, min_cell_size
@@ -336,8 +336,7 @@ class ImpactSimulation:
         f_nodes, f_p, info = self.contact.forces(x_sel, v[sel], self.node_mass[sel], dt, s)
         # touching nodes of fabric still attached to a clamped edge (a plug riding on the
         # face does not keep the run from ending)
-        info["n_attached"] = int(np.count_nonzero(np.any(f_nodes != 0.0, axis=1)
-                                                  & ~self.removal.free_nodes[sel]))
+        info["n_attached"] = int(count_touching(f_nodes, sel, self.removal.free_nodes))
         f_ext = np.zeros(n_dofs)
         f_ext.reshape(-1, 3)[sel] = f_nodes
         return f_ext, f_p, info
