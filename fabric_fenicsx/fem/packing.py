@@ -72,5 +72,5 @@ class CoefficientPacker:
         for key, index in self._index.items():
             # the index was checked to lie in range at construction: mode "clip" only skips
             # the bounds check and the buffered copy that mode "raise" makes with ``out``
-            source.take(index, out=self._packed[key], mode="clip")
+            np.take(source, index, out=self._packed[key], mode="clip")
         return self._packed

@@ -198,7 +198,11 @@ class Projectile:
         the point is no deeper below the face than inside the side, else the side's radial
         normal; on the axis the radial direction is taken as +x.
         """
-        x = np.ascontiguousarray(_points("x", x))
+        return self._distance(_points("x", x), z_face)
+
+    def _distance(self, x: np.ndarray, z_face: float | None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`gap_and_normal` of points ``x`` already checked (shape (n, 3), finite)."""
+        x = np.ascontiguousarray(x)
         gap, normal = np.empty(x.shape[0]), np.empty(x.shape)
         _gap_and_normal(x, self._z_face(z_face), self.radius, 0.5 * self.length, self.fillet,
                         self.axis_xy[0], self.axis_xy[1], gap, normal)
@@ -331,6 +335,12 @@ def stable_penalty(
         raise ValueError(f"fraction must be in (0, 1], got {fraction!r}")
     m = np.asarray(nodal_mass, dtype=float)
     _per_node("nodal_mass", m.ravel(), m.size)
+    return _penalty(m, dt, fraction, damping_ratio)
+
+
+def _penalty(m: np.ndarray, dt: float, fraction: float, damping_ratio: float) -> np.ndarray:
+    """:func:`stable_penalty` of arguments already checked (masses > 0, dt > 0, fraction in
+    (0, 1], damping_ratio >= 0)."""
     wdt = fraction * critical_omega_dt(damping_ratio)
     return m * (wdt / dt) ** 2
 
@@ -396,8 +406,8 @@ class PenaltyContact:
         self.penalty = penalty
 
     def _stiffness(self, m: np.ndarray, dt: float, idx: np.ndarray, n: int) -> np.ndarray:
-        if self.penalty is None:
-            return stable_penalty(m, dt, self.penalty_fraction, self.damping_ratio)
+        if self.penalty is None:   # m and dt checked by forces, the rest by __init__
+            return _penalty(m, dt, self.penalty_fraction, self.damping_ratio)
         if self.penalty.ndim == 1 and self.penalty.shape[0] != n:
             raise ValueError(f"penalty has {self.penalty.shape[0]} entries for {n} nodes")
         k = np.broadcast_to(self.penalty, (n,))[idx]
@@ -445,21 +455,21 @@ class PenaltyContact:
 
         proj = self.projectile
         f_nodes = np.zeros((n, 3))
-        info: dict[str, float] = dict(
-            penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
-            n_released=0, n_sliding=0, max_penetration=0.0, normal_force=0.0,
-            friction_force=0.0,
-        )
         idx = np.flatnonzero(proj.candidates(x, state.z))
         if idx.size:
-            gap, nrm = proj.gap_and_normal(x[idx], state.z)
+            gap, nrm = proj._distance(x[idx], state.z)   # x checked above
             inside = gap < 0.0
             idx, pen, nrm = idx[inside], -gap[inside], nrm[inside]
         if idx.size == 0:
-            return f_nodes, np.zeros(3), info
+            return f_nodes, np.zeros(3), dict(
+                penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
+                n_released=0, n_sliding=0, max_penetration=0.0, normal_force=0.0,
+                friction_force=0.0,
+            )
 
         limit = _MAX_PENETRATION_FRACTION * min(proj.radius, 0.5 * proj.length)
-        if pen.max() > limit:
+        pen_max = pen.max()
+        if pen_max > limit:
             i = int(np.argmax(pen))
             raise RuntimeError(
                 f"PenaltyContact.forces: node {int(idx[i])} at {x[idx[i]]} penetrates "
@@ -479,9 +489,9 @@ class PenaltyContact:
         penalty_forces(idx, np.ascontiguousarray(pen), np.ascontiguousarray(nrm), v,
                        np.ascontiguousarray(m), np.ascontiguousarray(k, dtype=float), state.vz,
                        self.damping_ratio, self.friction, dt, f_nodes, sums)
-        info.update(
+        info = dict(
             penalty_energy=float(sums[0]), friction_work=float(sums[1]), damping_work=float(sums[2]),
             n_active=int(idx.size), n_released=int(sums[3]), n_sliding=int(sums[4]),
-            max_penetration=float(pen.max()), normal_force=float(sums[5]), friction_force=float(sums[6]),
+            max_penetration=float(pen_max), normal_force=float(sums[5]), friction_force=float(sums[6]),
         )
         return f_nodes, sums[7:10].copy(), info

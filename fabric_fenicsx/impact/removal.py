@@ -62,7 +62,7 @@ class CellRemoval:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         state, (E1, E2) = self.material.state, self.material.strains
         if self._selected is None:
-            self._selected = (np.empty(self.live_cells.size, np.int64), np.empty(self.live_cells.size, np.int64))
+            self._selected = tuple(np.empty(self.live_cells.size, np.int64) for _ in range(2))
         delete, erode = self._selected
         n_delete, n_erode = _select(np.asarray(state.alpha1), np.asarray(state.alpha2), np.asarray(E1),
                                     np.asarray(E2), self.live_cells, self.npc, self.erosion_strain,

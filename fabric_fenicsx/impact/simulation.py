@@ -323,15 +323,13 @@ class ImpactSimulation:
         """Contact forces at t_n on this rank's live owned nodes near the projectile."""
         s, proj = self.state, self.projectile
         n_dofs = self.membrane.n_owned_dofs
-        zero_info = dict(penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
-                         n_attached=0, max_penetration=0.0, normal_force=0.0)
         margin = abs(s.vz) * dt + 1e-9
         if not proj.may_touch(self.ledger.z_max, s.z, margin):
-            return None, np.zeros(3), zero_info
+            return None, np.zeros(3), _no_contact()
         sel, x_sel = near_nodes(self.X, self.cd.u, self.removal.live_nodes, self.axis_xy[0],
                                 self.axis_xy[1], proj.radius, s.z, proj.length)
         if sel.size == 0:
-            return None, np.zeros(3), zero_info
+            return None, np.zeros(3), _no_contact()
         v = self.cd.v.reshape(-1, 3)
         f_nodes, f_p, info = self.contact.forces(x_sel, v[sel], self.node_mass[sel], dt, s)
         # touching nodes of fabric still attached to a clamped edge (a plug riding on the
@@ -646,6 +644,12 @@ def _removal_line(removal: dict) -> str:
             f"neither {states['neither']}; first damage warp {us(first['warp'])}, fill {us(first['fill'])}; "
             f"first alpha = 0 warp {us(broken['warp'])}, fill {us(broken['fill'])}; median chord "
             f"warp {chord['warp'] * 1e3:.2f} mm, fill {chord['fill'] * 1e3:.2f} mm (removed_cells.csv)")
+
+
+def _no_contact() -> dict:
+    """The contact ``info`` of a step without contact on this rank."""
+    return dict(penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0, n_attached=0,
+                max_penetration=0.0, normal_force=0.0)
 
 
 def _next_time(t_next: float, interval: float, t_n: float) -> float:
