@@ -60,6 +60,7 @@ KERNELS = [
     (simulation, "count_touching", "contact: touching attached nodes"),
     (removal, "_node_extremes", "end tests: node pass"),
     (removal, "_select", "removal: cells to delete or erode"),
+    (removal, "_attach", "removal: fabric still attached to a clamp"),
 ]
 
 

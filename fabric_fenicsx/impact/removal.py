@@ -150,12 +150,7 @@ class CellRemoval:
         attached = np.zeros(n_local, dtype=bool)
         attached[self.clamped_blocks] = True
         while True:
-            while True:   # on this rank
-                grown = attached.copy()
-                grown[cells[attached[cells].any(axis=1)].ravel()] = True
-                if np.array_equal(grown, attached):
-                    break
-                attached = grown
+            _attach(cells, attached)   # on this rank
             merged = self._exchange_nodes(attached)
             new = m.comm.allreduce(int(np.count_nonzero(merged & ~attached)), op=MPI.SUM)
             attached = merged
@@ -214,3 +209,24 @@ def _select(alpha1, alpha2, E1, E2, live_cells, npc, erosion_strain, delete, ero
             erode[n_erode] = c
             n_erode += 1
     return n_delete, n_erode
+
+
+@njit(cache=True, nogil=True)
+def _attach(cells, attached):
+    """Grow the node mask ``attached`` in place to its closure over the cells ``cells`` (rows of
+    node indices): every node of a cell with an attached node is attached, until no cell adds
+    one (the smallest such set containing the given one: it does not depend on the order in
+    which the cells are visited)."""
+    grown = True
+    while grown:
+        grown = False
+        for c in range(cells.shape[0]):
+            touching = False
+            for a in range(cells.shape[1]):
+                touching = touching or attached[cells[c, a]]
+            if not touching:
+                continue
+            for a in range(cells.shape[1]):
+                if not attached[cells[c, a]]:
+                    attached[cells[c, a]] = True
+                    grown = True
