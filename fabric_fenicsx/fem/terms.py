@@ -303,7 +303,8 @@ class HourglassControl(MembraneTerm):
         return _add_hourglass_forces(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3), forces)
 
     def cell_energy(self, m) -> float:
-        return _hourglass_energy(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3))
+        return _add_hourglass_forces(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3),
+                                     np.zeros((0, 3)))   # no rows: the energy only
 
     def wave_modulus(self) -> float:
         return self.k
@@ -352,7 +353,9 @@ def _hourglass_stiffness(wq, alpha1, alpha2, tension, live, live_dofs, k, ratio,
 @njit(cache=True, nogil=True)
 def _add_hourglass_forces(M, nodes, stiffness, u, forces):
     """f_a += sum_i s_i sum_b M_i,ab u_b per cell (s_i = stiffness[c, i, 0] for x, y and
-    stiffness[c, i, 1] for z) into ``forces``; returns 1/2 sum u . f of these cells (J)."""
+    stiffness[c, i, 1] for z) into ``forces``; returns 1/2 sum u . f of these cells (J).
+    ``forces`` without rows: the energy only, nothing added."""
+    add = forces.shape[0] > 0
     energy = 0.0
     for c in range(M.shape[0]):
         for a in range(4):
@@ -365,28 +368,9 @@ def _add_hourglass_forces(M, nodes, stiffness, u, forces):
                 fy += in_plane * u[nb, 1]
                 fz += out_of_plane * u[nb, 2]
             na = nodes[c, a]
-            forces[na, 0] += fx
-            forces[na, 1] += fy
-            forces[na, 2] += fz
-            energy += 0.5 * (fx * u[na, 0] + fy * u[na, 1] + fz * u[na, 2])
-    return energy
-
-
-@njit(cache=True, nogil=True)
-def _hourglass_energy(M, nodes, stiffness, u):
-    """The energy :func:`_add_hourglass_forces` returns (the same operations in the same
-    order), without adding the forces anywhere."""
-    energy = 0.0
-    for c in range(M.shape[0]):
-        for a in range(4):
-            fx = fy = fz = 0.0
-            for b in range(4):
-                in_plane = stiffness[c, 0, 0] * M[c, 0, a, b] + stiffness[c, 1, 0] * M[c, 1, a, b]
-                out_of_plane = stiffness[c, 0, 1] * M[c, 0, a, b] + stiffness[c, 1, 1] * M[c, 1, a, b]
-                nb = nodes[c, b]
-                fx += in_plane * u[nb, 0]
-                fy += in_plane * u[nb, 1]
-                fz += out_of_plane * u[nb, 2]
-            na = nodes[c, a]
+            if add:
+                forces[na, 0] += fx
+                forces[na, 1] += fy
+                forces[na, 2] += fz
             energy += 0.5 * (fx * u[na, 0] + fy * u[na, 1] + fz * u[na, 2])
     return energy
