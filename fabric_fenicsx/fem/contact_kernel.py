@@ -4,8 +4,9 @@
 reference positions and displacements; :func:`penalty_forces` is the force law of
 :meth:`fabric_fenicsx.fem.projectile.PenaltyContact.forces` (penalty spring, critically damped
 dashpot with the no-adhesion clip, Coulomb friction with the stick cap) for the nodes found
-inside the solid, with the sums its ``info`` reports. Both do what the numpy expressions they
-replace did, in one pass and without temporaries; sums are taken node by node.
+inside the solid, with the sums its ``info`` reports; :func:`count_touching` counts the touching
+nodes still attached to a clamped edge. They do what the numpy expressions they replace did, in
+one pass and without temporaries; sums are taken node by node.
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["near_nodes", "penalty_forces"]
+__all__ = ["near_nodes", "penalty_forces", "count_touching"]
 
 
 @njit(cache=True, nogil=True)
@@ -92,3 +93,13 @@ def penalty_forces(idx, pen, nrm, v, m, k, vz, damping_ratio, friction, dt, f_no
     sums[3], sums[4], sums[5], sums[6] = released, sliding, fn_sum, ft_sum
     sums[7], sums[8], sums[9] = fpx, fpy, fpz
 
+
+@njit(cache=True, nogil=True)
+def count_touching(f_nodes, sel, free):
+    """How many of the nodes ``sel`` carry a contact force (a non-zero row of ``f_nodes``, one
+    row per node of ``sel``) and are not ``free`` (still attached to a clamped edge)."""
+    count = 0
+    for j in range(sel.size):
+        if not free[sel[j]] and (f_nodes[j, 0] != 0.0 or f_nodes[j, 1] != 0.0 or f_nodes[j, 2] != 0.0):
+            count += 1
+    return count

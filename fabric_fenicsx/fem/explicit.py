@@ -228,6 +228,11 @@ class CentralDifference:
         self._res_c = np.zeros(self.clamped.size)
         self._works = np.zeros(5)  # internal, external, support, damping, dissipated
         self._f_diss = np.zeros(n)
+        # the step's work arrays, made once: the forces of step n are written into the spare
+        # buffers and swapped with those of step n - 1 (kept for the trapezoidal works)
+        self._spare = {name: np.zeros(n) for name in ("f_int", "f_ext", "f_damp", "f_diss")}
+        self._residual, self._acc = np.zeros(n), np.zeros(n)
+        self._local, self._total = np.zeros(7), np.zeros(7)
         self.energy = EnergyRecord(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         self.timings = {"strain": 0.0, "material": 0.0, "assembly": 0.0, "rest": 0.0}
 
@@ -273,12 +278,16 @@ class CentralDifference:
             raise ValueError(f"dt must be a finite positive time step in s, got {dt!r}")
         m = self.membrane
         n = m.n_owned_dofs
+        spare = self._spare
+        f_ext_now = spare["f_ext"]   # a copy: it is kept for the work increment
         if f_ext is None:
-            f_ext = np.zeros(n)
+            f_ext_now.fill(0.0)
         else:
-            f_ext = np.array(f_ext, dtype=float)  # a copy: it is kept for the work increment
+            f_ext = np.asarray(f_ext, dtype=float)
             if f_ext.shape != (n,):
                 raise ValueError(f"f_ext must have shape ({n},) (owned dofs), got {f_ext.shape}")
+            np.copyto(f_ext_now, f_ext)
+        f_ext = f_ext_now
 
         t0 = time.perf_counter()
         E1, E2 = m.yarn_strains()
@@ -287,25 +296,27 @@ class CentralDifference:
         t2 = time.perf_counter()
         m.set_stress(P1, P2)
         m.set_term_context(self.v, self._dt_prev)
-        f_int = m.internal_force()
-        f_diss = m.dissipative_force()
+        f_int = m.internal_force(out=spare["f_int"])
+        f_diss = m.dissipative_force(out=spare["f_diss"])
         t3 = time.perf_counter()
 
         damping = self.beta / self._dt_prev if self.beta > 0.0 and self._dt_prev > 0.0 else 0.0
-        f_damp, residual, acc = np.empty(n), np.empty(n), np.empty(n)
+        f_damp, residual, acc = spare["f_damp"], self._residual, self._acc
         # Trapezoidal work over [t_{n-1}, t_n]; reactions act on clamped dofs only.
-        local = np.zeros(7)
+        local = self._local
+        local[4] = 0.0
         _forces_and_works(f_int, f_ext, self._f_int, self._f_ext, self._f_damp, self._inv_mass_free,
                           self._du, self.v, self.mass, damping, 0.5 * self._dt_prev, f_damp, residual,
                           acc, local)
         c = self.clamped
-        local[2] = -0.5 * np.dot(residual[c] + self._res_c, self._du[c])
+        res_c = residual[c]
+        local[2] = -0.5 * np.dot(res_c + self._res_c, self._du[c])
         if f_diss is not None:
             local[4] = 0.5 * np.dot(f_diss + self._f_diss, self._du)
-        local[6] = float(np.sum(E1) + np.sum(E2) + np.sum(P1) + np.sum(P2))
-        total = np.empty_like(local)
+        local[6] = float(_sum(E1) + _sum(E2) + _sum(P1) + _sum(P2))
+        total = self._total
         m.comm.Allreduce(local, total, op=MPI.SUM)
-        if not np.all(np.isfinite(total)):
+        if not np.isfinite(total).all():
             raise FloatingPointError(
                 f"explicit step {self.n_steps} at t = {self.time:.6e} s produced non-finite values "
                 f"(work increments, kinetic energy, strain/stress sums = {total}); "
@@ -319,10 +330,11 @@ class CentralDifference:
         _leapfrog(self.v, self.u, self._du, acc, 0.5 * (self._dt_prev + dt), dt)
         m.u.x.scatter_forward()
 
+        spare["f_int"], spare["f_ext"], spare["f_damp"] = self._f_int, self._f_ext, self._f_damp
         self._f_int, self._f_ext, self._f_damp = f_int, f_ext, f_damp
         if f_diss is not None:
-            self._f_diss = f_diss
-        self._res_c = residual[c]
+            spare["f_diss"], self._f_diss = self._f_diss, f_diss
+        self._res_c = res_c
         self._dt_prev = dt
         self.time += dt
         self.n_steps += 1
@@ -333,6 +345,11 @@ class CentralDifference:
         tm["assembly"] += t3 - t2
         tm["rest"] += t4 - t3
         return self.energy
+
+
+def _sum(a) -> float:
+    """np.sum(a) (the same pairwise sum) without its dispatch for an ndarray."""
+    return a.sum() if type(a) is np.ndarray else np.sum(a)
 
 
 @njit(cache=True, nogil=True)

@@ -217,7 +217,7 @@ class Membrane:
         for term in self.terms:
             term.prepare(self)
             if term.per_cell:
-                local = term.add_cell_forces(self, np.zeros((self.u.x.array.size // 3, 3)))
+                local = term.cell_energy(self)
                 energies[term.name] = energies.get(term.name, 0.0) + self.comm.allreduce(local, op=MPI.SUM)
                 continue
             if id(term) not in self._energy_forms:
@@ -297,10 +297,10 @@ class Membrane:
         return f
 
     # ---------------------------------------------------------------- dof data (numpy)
-    def internal_force(self) -> np.ndarray:
+    def internal_force(self, out: np.ndarray | None = None) -> np.ndarray:
         """Owned part of f_int = assemble(weak_form()) plus the ``per_cell`` terms' forces (N)
         for the current u, P1, P2; ghost contributions are summed onto their owners
-        (ADD/REVERSE)."""
+        (ADD/REVERSE). Written into ``out`` (owned dofs) if given, else into a new array."""
         for term in self.terms:
             term.prepare(self)
         key = tuple(id(t) for t in self.terms)
@@ -310,26 +310,18 @@ class Membrane:
             self._form_key = key
             self._per_cell_terms = [term for term in self.terms if term.per_cell]
             self._b = la.create_petsc_vector(self.V.dofmap.index_map, self.V.dofmap.index_map_bs)
-        b = self._b
-        with b.localForm() as b_local:
-            b_local.set(0.0)
-        for form, packer in zip(self._form, self._packers):
-            fem_petsc.assemble_vector(b, form, coeffs=packer.pack())     # adds into b
-        if self._per_cell_terms:
-            with b.localForm() as b_local:
-                for term in self._per_cell_terms:
-                    term.add_cell_forces(self, b_local.array_w.reshape(-1, 3))
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        return b.array_r.copy()
+        self._assemble(self._b, self._form, self._packers, self._per_cell_terms)
+        return _owned(self._b, out)
 
-    def dissipative_force(self) -> np.ndarray | None:
+    def dissipative_force(self, out: np.ndarray | None = None) -> np.ndarray | None:
         """Owned part of the forces (N) of the terms that declare their work dissipated
         (:attr:`~fabric_fenicsx.fem.terms.MembraneTerm.dissipative`), at the state of the last
         :meth:`internal_force`; None when no term does. Their work is part of the internal work
-        and is booked apart as dissipation (``EnergyRecord.dissipated``)."""
-        terms = [t for t in self.terms if t.dissipative]
-        if not terms:
+        and is booked apart as dissipation (``EnergyRecord.dissipated``). Written into ``out``
+        (owned dofs) if given, else into a new array."""
+        if not any(t.dissipative for t in self.terms):
             return None
+        terms = [t for t in self.terms if t.dissipative]
         if any(t.per_cell for t in terms):
             raise NotImplementedError("a per_cell term cannot declare its work dissipated: give it "
                                       "a UFL integrand")
@@ -344,13 +336,22 @@ class Membrane:
             self._diss_packers = [CoefficientPacker(form) for form in self._diss_form]
             self._diss_key = key
             self._diss_b = la.create_petsc_vector(self.V.dofmap.index_map, self.V.dofmap.index_map_bs)
-        b = self._diss_b
+        self._assemble(self._diss_b, self._diss_form, self._diss_packers, ())
+        return _owned(self._diss_b, out)
+
+    def _assemble(self, b: PETSc.Vec, forms: list, packers: list, per_cell_terms) -> None:
+        """b = the forms assembled by DOLFINx's ``assemble_vector`` (coefficients packed by
+        their :class:`~fabric_fenicsx.fem.packing.CoefficientPacker`, constants by DOLFINx)
+        plus the forces of ``per_cell_terms``, ghost contributions summed onto their owners
+        (ADD/REVERSE). One local form of ``b`` for all of them."""
         with b.localForm() as b_local:
-            b_local.set(0.0)
-        for form, packer in zip(self._diss_form, self._diss_packers):
-            fem_petsc.assemble_vector(b, form, coeffs=packer.pack())
+            local = b_local.array_w
+            local.fill(0.0)
+            for form, packer in zip(forms, packers):
+                fem.assemble_vector(local, form, coeffs=packer.pack())     # adds into b
+            for term in per_cell_terms:
+                term.add_cell_forces(self, local.reshape(-1, 3))
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        return b.array_r.copy()
 
     def _weak_form_parts(self) -> list:
         """:meth:`weak_form` split into one form per quadrature rule: DOLFINx 0.5.2 assembles
@@ -415,3 +416,12 @@ class Membrane:
             local = lengths.min() if lengths.size else np.inf
             self._h_min = self.comm.allreduce(float(local), op=MPI.MIN)
         return self._h_min
+
+
+def _owned(b: PETSc.Vec, out: np.ndarray | None) -> np.ndarray:
+    """The owned entries of the assembled vector ``b``, copied into ``out`` if given (no new
+    array), else into a new array."""
+    if out is None:
+        return b.array_r.copy()
+    np.copyto(out, b.array_r)
+    return out

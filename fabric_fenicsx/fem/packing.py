@@ -70,5 +70,7 @@ class CoefficientPacker:
         for a, start, stop in zip(self._arrays, self._offsets[:-1], self._offsets[1:]):
             source[start:stop] = a
         for key, index in self._index.items():
-            np.take(source, index, out=self._packed[key])
+            # the index was checked to lie in range at construction: mode "clip" only skips
+            # the bounds check and the buffered copy that mode "raise" makes with ``out``
+            np.take(source, index, out=self._packed[key], mode="clip")
         return self._packed

@@ -83,7 +83,7 @@ def _points(name: str, x: Any) -> np.ndarray:
     arr = np.asarray(x, dtype=float)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f"{name} must have shape (n, 3), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
         raise ValueError(f"{name} has non-finite entries, first at row {bad}: {arr[bad]}")
     return arr
@@ -93,8 +93,9 @@ def _per_node(name: str, value: Any, n: int) -> np.ndarray:
     arr = np.asarray(value, dtype=float)
     if arr.ndim > 1 or (arr.ndim == 1 and arr.shape[0] != n):
         raise ValueError(f"{name} must be a scalar or have shape ({n},), got {arr.shape}")
-    arr = np.broadcast_to(arr, (n,))
-    if not np.all(np.isfinite(arr) & (arr > 0.0)):
+    if arr.ndim == 0:
+        arr = np.broadcast_to(arr, (n,))
+    if not (np.isfinite(arr) & (arr > 0.0)).all():
         bad = int(np.flatnonzero(~(np.isfinite(arr) & (arr > 0.0)))[0])
         raise ValueError(f"{name} must be finite and > 0, got {arr[bad]!r} at node {bad}")
     return arr
@@ -124,6 +125,15 @@ def _gap_and_normal(x, z_face, R, half, fillet, ax, ay, gap, normal):
         er_x, er_y = (1.0, 0.0) if r == 0.0 else (dx / r, dy / r)
         normal[p, 0], normal[p, 1] = gx * er_x, gx * er_y
         normal[p, 2] = -gy if front else gy
+
+
+@njit(cache=True, nogil=True)
+def _in_cylinder(x, z_lo, z_hi, ax, ay, r2, inside):
+    """:meth:`Projectile.candidates` per point (compiled: it runs at every step): z_lo < z <
+    z_hi and (x - ax)^2 + (y - ay)^2 < r2, the same operations as the array expression."""
+    for p in range(x.shape[0]):
+        dx, dy, z = x[p, 0] - ax, x[p, 1] - ay, x[p, 2]
+        inside[p] = (z > z_lo) & (z < z_hi) & (dx * dx + dy * dy < r2)
 
 
 @dataclass(frozen=True)
@@ -188,7 +198,11 @@ class Projectile:
         the point is no deeper below the face than inside the side, else the side's radial
         normal; on the axis the radial direction is taken as +x.
         """
-        x = np.ascontiguousarray(_points("x", x))
+        return self._distance(_points("x", x), z_face)
+
+    def _distance(self, x: np.ndarray, z_face: float | None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`gap_and_normal` of points ``x`` already checked (shape (n, 3), finite)."""
+        x = np.ascontiguousarray(x)
         gap, normal = np.empty(x.shape[0]), np.empty(x.shape)
         _gap_and_normal(x, self._z_face(z_face), self.radius, 0.5 * self.length, self.fillet,
                         self.axis_xy[0], self.axis_xy[1], gap, normal)
@@ -198,10 +212,10 @@ class Projectile:
         """Boolean mask of the points inside the bounding cylinder of the solid: the only ones
         that can have g < 0."""
         zf = self._z_face(z_face)
-        dx = x[:, 0] - self.axis_xy[0]
-        dy = x[:, 1] - self.axis_xy[1]
-        z = x[:, 2]
-        return (z > zf) & (z < zf + self.length) & (dx * dx + dy * dy < self.radius**2)
+        x = np.asarray(x, dtype=float)
+        inside = np.empty(x.shape[0], dtype=bool)
+        _in_cylinder(x, zf, zf + self.length, self.axis_xy[0], self.axis_xy[1], self.radius**2, inside)
+        return inside
 
     def may_touch(
         self, fabric_z_max: float, z_face: float | None = None, margin: float = 0.0
@@ -321,6 +335,12 @@ def stable_penalty(
         raise ValueError(f"fraction must be in (0, 1], got {fraction!r}")
     m = np.asarray(nodal_mass, dtype=float)
     _per_node("nodal_mass", m.ravel(), m.size)
+    return _penalty(m, dt, fraction, damping_ratio)
+
+
+def _penalty(m: np.ndarray, dt: float, fraction: float, damping_ratio: float) -> np.ndarray:
+    """:func:`stable_penalty` of arguments already checked (masses > 0, dt > 0, fraction in
+    (0, 1], damping_ratio >= 0)."""
     wdt = fraction * critical_omega_dt(damping_ratio)
     return m * (wdt / dt) ** 2
 
@@ -386,8 +406,8 @@ class PenaltyContact:
         self.penalty = penalty
 
     def _stiffness(self, m: np.ndarray, dt: float, idx: np.ndarray, n: int) -> np.ndarray:
-        if self.penalty is None:
-            return stable_penalty(m, dt, self.penalty_fraction, self.damping_ratio)
+        if self.penalty is None:   # m and dt checked by forces, the rest by __init__
+            return _penalty(m, dt, self.penalty_fraction, self.damping_ratio)
         if self.penalty.ndim == 1 and self.penalty.shape[0] != n:
             raise ValueError(f"penalty has {self.penalty.shape[0]} entries for {n} nodes")
         k = np.broadcast_to(self.penalty, (n,))[idx]
@@ -435,21 +455,21 @@ class PenaltyContact:
 
         proj = self.projectile
         f_nodes = np.zeros((n, 3))
-        info: dict[str, float] = dict(
-            penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
-            n_released=0, n_sliding=0, max_penetration=0.0, normal_force=0.0,
-            friction_force=0.0,
-        )
         idx = np.flatnonzero(proj.candidates(x, state.z))
         if idx.size:
-            gap, nrm = proj.gap_and_normal(x[idx], state.z)
+            gap, nrm = proj._distance(x[idx], state.z)   # x checked above
             inside = gap < 0.0
             idx, pen, nrm = idx[inside], -gap[inside], nrm[inside]
         if idx.size == 0:
-            return f_nodes, np.zeros(3), info
+            return f_nodes, np.zeros(3), dict(
+                penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
+                n_released=0, n_sliding=0, max_penetration=0.0, normal_force=0.0,
+                friction_force=0.0,
+            )
 
         limit = _MAX_PENETRATION_FRACTION * min(proj.radius, 0.5 * proj.length)
-        if pen.max() > limit:
+        pen_max = pen.max()
+        if pen_max > limit:
             i = int(np.argmax(pen))
             raise RuntimeError(
                 f"PenaltyContact.forces: node {int(idx[i])} at {x[idx[i]]} penetrates "
@@ -469,9 +489,9 @@ class PenaltyContact:
         penalty_forces(idx, np.ascontiguousarray(pen), np.ascontiguousarray(nrm), v,
                        np.ascontiguousarray(m), np.ascontiguousarray(k, dtype=float), state.vz,
                        self.damping_ratio, self.friction, dt, f_nodes, sums)
-        info.update(
+        info = dict(
             penalty_energy=float(sums[0]), friction_work=float(sums[1]), damping_work=float(sums[2]),
             n_active=int(idx.size), n_released=int(sums[3]), n_sliding=int(sums[4]),
-            max_penetration=float(pen.max()), normal_force=float(sums[5]), friction_force=float(sums[6]),
+            max_penetration=float(pen_max), normal_force=float(sums[5]), friction_force=float(sums[6]),
         )
         return f_nodes, sums[7:10].copy(), info

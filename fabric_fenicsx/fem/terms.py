@@ -107,6 +107,11 @@ class MembraneTerm:
         last :meth:`prepare`; return its stored energy (J) in those cells."""
         raise NotImplementedError
 
+    def cell_energy(self, m) -> float:
+        """A :attr:`per_cell` term: the stored energy (J) :meth:`add_cell_forces` returns, at
+        the state of the last :meth:`prepare` (override to skip the forces)."""
+        return self.add_cell_forces(m, np.zeros((m.u.x.array.size // 3, 3)))
+
 
 class YarnTerm(MembraneTerm):
     """The yarn stresses of the unit cell: P : Grad v with P = P1 l1 (x) L1 + P2 l2 (x) L2
@@ -279,21 +284,27 @@ class HourglassControl(MembraneTerm):
         self._M = fluctuation_matrices(m.V.tabulate_dof_coordinates()[:, :2][self._nodes],
                                        np.array(yarn_directions(m.angle)), self.DEGREE)
         self._wq = _cell_weights(m)
+        self._s = np.empty((m.n_cells, 2, 2))    # s per cell, yarn and (in-plane, out-of-plane)
+        self._ones = np.ones(self._wq.size)      # alpha_i and T_i before the term follows a material
+        self._full_tension = np.full((2, self._wq.size), self.modulus)
 
     def prepare(self, m) -> None:
         if self._M is None:
             self._setup(m)
-        n = m.n_cells
         state = self._integrity() if self._integrity is not None else None
         npts = self._wq.size
-        alpha = (np.ones((2, npts)) if state is None else np.stack((state.alpha1, state.alpha2)))
-        tension = np.full((2, npts), self.modulus) if self._tension is None else self._tension()
-        self._s = np.empty((n, 2, 2))            # s per cell, yarn and (in-plane, out-of-plane)
-        _hourglass_stiffness(self._wq, alpha, tension, m.live.x.array[m._live_dofs], self.k,
+        alpha1, alpha2 = ((self._ones, self._ones) if state is None
+                          else (np.asarray(state.alpha1, float), np.asarray(state.alpha2, float)))
+        tension = self._full_tension if self._tension is None else self._tension()
+        _hourglass_stiffness(self._wq, alpha1, alpha2, tension, m.live.x.array, m._live_dofs, self.k,
                              self.ratio, self._s)
 
     def add_cell_forces(self, m, forces: np.ndarray) -> float:
         return _add_hourglass_forces(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3), forces)
+
+    def cell_energy(self, m) -> float:
+        return _add_hourglass_forces(self._M, self._nodes, self._s, m.u.x.array.reshape(-1, 3),
+                                     np.zeros((0, 3)))   # no rows: the energy only
 
     def wave_modulus(self) -> float:
         return self.k
@@ -321,24 +332,30 @@ def fluctuation_matrices(X: np.ndarray, directions: np.ndarray, degree: int = 2)
 
 
 @njit(cache=True, nogil=True)
-def _hourglass_stiffness(wq, alpha, tension, live, k, ratio, s):
+def _hourglass_stiffness(wq, alpha1, alpha2, tension, live, live_dofs, k, ratio, s):
     """s[c, i] = (k <alpha_i>, ratio <max(T_i, 0)>) x live_c per cell c and yarn i, <.> the
-    cell means with the normalised weights ``wq`` (n_cells, points)."""
+    cell means with the normalised weights ``wq`` (n_cells, points), live_c = live[live_dofs[c]]
+    (the live-cell mask's value of the cell)."""
     npc = wq.shape[1]
     for c in range(wq.shape[0]):
-        for i in range(2):
-            a = t = 0.0
-            for q in range(npc):
-                a += wq[c, q] * alpha[i, c * npc + q]
-                t += wq[c, q] * max(tension[i, c * npc + q], 0.0)
-            s[c, i, 0] = k * a * live[c]
-            s[c, i, 1] = ratio * t * live[c]
+        a1 = a2 = t1 = t2 = 0.0
+        for q in range(npc):
+            p, w = c * npc + q, wq[c, q]
+            a1 += w * alpha1[p]
+            a2 += w * alpha2[p]
+            t1 += w * max(tension[0, p], 0.0)
+            t2 += w * max(tension[1, p], 0.0)
+        live_c = live[live_dofs[c]]
+        s[c, 0, 0], s[c, 0, 1] = k * a1 * live_c, ratio * t1 * live_c
+        s[c, 1, 0], s[c, 1, 1] = k * a2 * live_c, ratio * t2 * live_c
 
 
 @njit(cache=True, nogil=True)
 def _add_hourglass_forces(M, nodes, stiffness, u, forces):
     """f_a += sum_i s_i sum_b M_i,ab u_b per cell (s_i = stiffness[c, i, 0] for x, y and
-    stiffness[c, i, 1] for z) into ``forces``; returns 1/2 sum u . f of these cells (J)."""
+    stiffness[c, i, 1] for z) into ``forces``; returns 1/2 sum u . f of these cells (J).
+    ``forces`` without rows: the energy only, nothing added."""
+    add = forces.shape[0] > 0
     energy = 0.0
     for c in range(M.shape[0]):
         for a in range(4):
@@ -351,8 +368,9 @@ def _add_hourglass_forces(M, nodes, stiffness, u, forces):
                 fy += in_plane * u[nb, 1]
                 fz += out_of_plane * u[nb, 2]
             na = nodes[c, a]
-            forces[na, 0] += fx
-            forces[na, 1] += fy
-            forces[na, 2] += fz
+            if add:
+                forces[na, 0] += fx
+                forces[na, 1] += fy
+                forces[na, 2] += fz
             energy += 0.5 * (fx * u[na, 0] + fy * u[na, 1] + fz * u[na, 2])
     return energy

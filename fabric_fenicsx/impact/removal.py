@@ -53,19 +53,21 @@ class CellRemoval:
         """One row per cell this rank removed (:data:`~.removal_log.REMOVED_CELL_COLUMNS`)."""
         self._reported = 0
         self._geometry = None
+        self._selected = None   # the cell index buffers of select
 
     def select(self) -> tuple[np.ndarray, np.ndarray]:
         """Cells to delete (all points SDV1 = 0) and to erode (a yarn strain beyond the
         erosion strain) now, among the live cells of this rank."""
         if self.erosion_strain is None:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        mat, npc = self.material, self.npc
-        dead = mat.state.removed.reshape(-1, npc).all(axis=1)
-        strain = np.maximum(*mat.strains).reshape(-1, npc).max(axis=1)
-        over = strain > self.erosion_strain
-        delete = np.flatnonzero(dead & self.live_cells)
-        erode = np.flatnonzero(over & ~dead & self.live_cells)
-        return delete, erode
+        state, (E1, E2) = self.material.state, self.material.strains
+        if self._selected is None:
+            self._selected = tuple(np.empty(self.live_cells.size, np.int64) for _ in range(2))
+        delete, erode = self._selected
+        n_delete, n_erode = _select(np.asarray(state.alpha1), np.asarray(state.alpha2), np.asarray(E1),
+                                    np.asarray(E2), self.live_cells, self.npc, self.erosion_strain,
+                                    delete, erode)
+        return delete[:n_delete].copy(), erode[:n_erode].copy()
 
     def node_extremes(self, X: np.ndarray, u: np.ndarray, axis_xy, radius: float,
                       z_front: float) -> tuple[float, int, float]:
@@ -148,12 +150,7 @@ class CellRemoval:
         attached = np.zeros(n_local, dtype=bool)
         attached[self.clamped_blocks] = True
         while True:
-            while True:   # on this rank
-                grown = attached.copy()
-                grown[cells[attached[cells].any(axis=1)].ravel()] = True
-                if np.array_equal(grown, attached):
-                    break
-                attached = grown
+            _attach(cells, attached)   # on this rank
             merged = self._exchange_nodes(attached)
             new = m.comm.allreduce(int(np.count_nonzero(merged & ~attached)), op=MPI.SUM)
             attached = merged
@@ -186,3 +183,50 @@ def _node_extremes(X, u, live, free, ax, ay, radius, z_front):
         for c in range(3):
             moved = max(moved, abs(u[3 * a + c]))
     return z_max, front, moved
+
+
+@njit(cache=True, nogil=True)
+def _select(alpha1, alpha2, E1, E2, live_cells, npc, erosion_strain, delete, erode):
+    """One pass over the live cells for :meth:`CellRemoval.select`: into ``delete`` the cells
+    whose points all have both yarns broken (alpha1 <= 0 and alpha2 <= 0), into ``erode`` the
+    others with a yarn strain above ``erosion_strain`` at a point (none if a strain there is
+    NaN, as for the NaN-propagating maximum); returns how many of each, in increasing order."""
+    n_delete = n_erode = 0
+    for c in range(live_cells.size):
+        if not live_cells[c]:
+            continue
+        dead, over, nan = True, False, False
+        for p in range(c * npc, (c + 1) * npc):
+            dead = dead and alpha1[p] <= 0.0 and alpha2[p] <= 0.0
+            if math.isnan(E1[p]) or math.isnan(E2[p]):
+                nan = True
+            elif E1[p] > erosion_strain or E2[p] > erosion_strain:
+                over = True
+        if dead:
+            delete[n_delete] = c
+            n_delete += 1
+        elif over and not nan:
+            erode[n_erode] = c
+            n_erode += 1
+    return n_delete, n_erode
+
+
+@njit(cache=True, nogil=True)
+def _attach(cells, attached):
+    """Grow the node mask ``attached`` in place to its closure over the cells ``cells`` (rows of
+    node indices): every node of a cell with an attached node is attached, until no cell adds
+    one (the smallest such set containing the given one: it does not depend on the order in
+    which the cells are visited)."""
+    grown = True
+    while grown:
+        grown = False
+        for c in range(cells.shape[0]):
+            touching = False
+            for a in range(cells.shape[1]):
+                touching = touching or attached[cells[c, a]]
+            if not touching:
+                continue
+            for a in range(cells.shape[1]):
+                if not attached[cells[c, a]]:
+                    attached[cells[c, a]] = True
+                    grown = True

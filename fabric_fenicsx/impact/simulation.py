@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 from mpi4py import MPI
 
-from fabric_fenicsx.fem.contact_kernel import near_nodes
+from fabric_fenicsx.fem.contact_kernel import count_touching, near_nodes
 from fabric_fenicsx.fem.explicit import CentralDifference
 from fabric_fenicsx.fem.membrane import Membrane
 from fabric_fenicsx.fem.mesh import edge_dofs, min_cell_size
@@ -188,6 +188,7 @@ class ImpactSimulation:
                          if out.png or out.animation else None)
         self.ledger = EnergyLedger()
         self.clock = _Clock()
+        self._reach = None   # trouble.attached_reach of the scene, taken at the first check
         self._tile_seconds0 = self._tile_seconds()
         self.build_seconds = time.perf_counter() - t_build
         terms = ", ".join(t.name for t in m.terms)
@@ -322,21 +323,18 @@ class ImpactSimulation:
         """Contact forces at t_n on this rank's live owned nodes near the projectile."""
         s, proj = self.state, self.projectile
         n_dofs = self.membrane.n_owned_dofs
-        zero_info = dict(penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
-                         n_attached=0, max_penetration=0.0, normal_force=0.0)
         margin = abs(s.vz) * dt + 1e-9
         if not proj.may_touch(self.ledger.z_max, s.z, margin):
-            return None, np.zeros(3), zero_info
+            return None, np.zeros(3), _no_contact()
         sel, x_sel = near_nodes(self.X, self.cd.u, self.removal.live_nodes, self.axis_xy[0],
                                 self.axis_xy[1], proj.radius, s.z, proj.length)
         if sel.size == 0:
-            return None, np.zeros(3), zero_info
+            return None, np.zeros(3), _no_contact()
         v = self.cd.v.reshape(-1, 3)
         f_nodes, f_p, info = self.contact.forces(x_sel, v[sel], self.node_mass[sel], dt, s)
         # touching nodes of fabric still attached to a clamped edge (a plug riding on the
         # face does not keep the run from ending)
-        info["n_attached"] = int(np.count_nonzero(np.any(f_nodes != 0.0, axis=1)
-                                                  & ~self.removal.free_nodes[sel]))
+        info["n_attached"] = int(count_touching(f_nodes, sel, self.removal.free_nodes))
         f_ext = np.zeros(n_dofs)
         f_ext.reshape(-1, 3)[sel] = f_nodes
         return f_ext, f_p, info
@@ -475,7 +473,17 @@ class ImpactSimulation:
         kinetic = energy.kinetic + KE_p
         W_el = energy.internal - ledger.viscous - energy.dissipated
         moved = maxima["attached_displacement"]
-        reach = trouble.attached_reach(sc.mesh.side, self.removal.erosion_strain)
+        if self._reach is None:
+            self._reach = trouble.attached_reach(sc.mesh.side, self.removal.erosion_strain)
+        reach = self._reach
+        if (kinetic > _BLOW_UP_ENERGY * self.KE0 or W_el < -_NEGATIVE_WORK * self.KE0 or moved > reach
+                or ledger.error_now > sc.run.energy_tolerance):
+            self._stop_on_trouble(loop, t_n, kinetic, W_el, moved, reach)
+
+    def _stop_on_trouble(self, loop: _Loop, t_n: float, kinetic: float, W_el: float, moved: float,
+                         reach: float) -> None:
+        """The :class:`ImpactError` of :meth:`_check_trouble` once one of its tests tripped."""
+        ledger, sc = self.ledger, self.scene
         tripped = [what for bad, what in (
             (kinetic > _BLOW_UP_ENERGY * self.KE0,
              f"kinetic energy {kinetic:.4g} J > {_BLOW_UP_ENERGY:g} x the impact energy KE_0 = "
@@ -636,6 +644,12 @@ def _removal_line(removal: dict) -> str:
             f"neither {states['neither']}; first damage warp {us(first['warp'])}, fill {us(first['fill'])}; "
             f"first alpha = 0 warp {us(broken['warp'])}, fill {us(broken['fill'])}; median chord "
             f"warp {chord['warp'] * 1e3:.2f} mm, fill {chord['fill'] * 1e3:.2f} mm (removed_cells.csv)")
+
+
+def _no_contact() -> dict:
+    """The contact ``info`` of a step without contact on this rank."""
+    return dict(penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0, n_attached=0,
+                max_penetration=0.0, normal_force=0.0)
 
 
 def _next_time(t_next: float, interval: float, t_n: float) -> float:
