@@ -26,9 +26,10 @@ The rule sits between the surrogate's damage update and the stresses (``YarnStre
 it hands the points their laws (:meth:`YarnCrack.laws`), then accepts or takes back each new
 damage (:meth:`YarnCrack.admit`). A cell found far from any crack and short of the segment's
 strength is asked with the segment's law from then on, until a crack is added near it: the damage
-the tip's law would give there is taken back anyway, and asking twice a step cost 3 to 5 times
-a step's constitutive update (docs/ballistic_limit.md). Removal (deletion, erosion) is unchanged. One rank: the cracks
-near a cell on another rank are not exchanged; the rule refuses a communicator of more.
+the tip's law would give there is taken back anyway, and asking twice a step made the step's
+constitutive update 1.8 to 2.4 times as long (docs/ballistic_limit.md). Removal (deletion,
+erosion) is unchanged. One rank: the cracks near a cell on another rank are not exchanged; the
+rule refuses a communicator of more.
 """
 from __future__ import annotations
 
