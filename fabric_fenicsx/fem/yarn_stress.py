@@ -229,9 +229,9 @@ class YarnStress:
         r1, r2 = self._relax(e1, e2, a1h[sel], a2h[sel], self.E_relaxed[:, sel])
         self.E_relaxed[0, sel], self.E_relaxed[1, sel] = r1, r2
         if self.damage:
-            laws = ({} if self.mu_crit is None else
+            laws = ({} if self.mu_crit is None or self.failure is not None else
                     {"critical_stretch": self.mu_crit[:, sel], "softening_scale": self.scale[:, sel]})
-            if self.failure is not None:
+            if self.failure is not None:   # the rule hands out the laws (the scatter's among them)
                 laws = self.failure.laws(idx)
                 p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
                 (b1, b2), redo = self.failure.admit(self.sur, idx, r1, r2, np.stack((a1h[sel], a2h[sel])),
