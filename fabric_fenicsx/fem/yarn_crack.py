@@ -12,10 +12,14 @@ This rule gives the cells both, per yarn family i (warp 0, fill 1), with directi
   Appl. Mech. Eng. 196 (2006) 304-320, with the crack's direction that of the other yarns):
   every cracked cell carries the position ``line`` = x . d_i of its crack, a line along d_j. A
   cell whose yarn i would start to damage is admitted to soften if the line of a cracked cell
-  within ``exclusion`` of its own size crosses it (the crack's tip runs on along the line); it is
-  held intact if cracked cells are near but none of their lines crosses it (it lies beside the
-  crack, which runs along the yarns, not along the cells); with no cracked cell near it starts a
-  crack of its own on the line through its centre (a root).
+  within ``exclusion`` of its own size crosses it (the crack's tip runs on along the line, with
+  the tip's law). Any other cell, beside a crack or far from any, is asked with the segment's own
+  law: a yarn breaks wherever it reaches its own strength, and there it starts a crack of its own
+  on the line through its centre (a root); short of that strength its new damage is taken back
+  (it lies beside the crack, which runs along the yarns, not along the cells). Holding a cell
+  beside a crack whatever its strain (the rule's first form) let a straight crack through the
+  first yarn to break at a projectile's edge run across the yarns the projectile loads, wherever
+  along the edge the mesh put that first break (docs/ballistic_limit.md).
 * **How much energy a cell takes** (:mod:`fabric_fenicsx.material.crack_energy`): a cell at a
   crack's tip breaks with the work of one segment per yarn: its law is that of equal energy over
   its extent c along d_i, ratio h0 / c. A root keeps the segment's own law (its strength: where
@@ -39,18 +43,30 @@ import numpy as np
 
 from fabric_fenicsx.material.crack_energy import equal_energy_law, softening_moments
 
-__all__ = ["YarnCrack", "EXCLUSION", "cell_extents"]
+__all__ = ["YarnCrack", "EXCLUSION", "CRACK_COLUMNS", "KINDS", "cell_extents"]
 
 EXCLUSION = 3.0
 """Radius of a cell's neighbourhood, in units of its diameter (longest corner-to-corner
-distance): the cracked cells nearer than this decide whether it may soften, and a new crack
-starts only farther away. On a mesh not aligned with the yarns the strain beside a crack's tip
-can exceed that on its line a few cells away: with 1.5 diameters a second crack started 2.5 mm
-beside the first ahead of its tip on the 30-degree 1 mm tear-test mesh; 3 hold it on the line."""
+distance): a cracked cell nearer than this whose line crosses it gives it the tip's law; of the
+cells that start cracks in one step, one per neighbourhood does (the others are asked again the
+next step, with the new crack near). On a mesh not aligned with the yarns the strain beside a
+crack's tip can exceed that on its line a few cells away: with 1.5 diameters a second crack
+started 2.5 mm beside the first ahead of its tip on the 30-degree 1 mm tear-test mesh."""
 
 UNCRACKED, ROOT, TIP, GIVEN = 0, 1, 2, 3
 """What a cell is in a family's crack: not cracked; the start of a crack (the segment's law);
 on a crack's line behind its start (the law of equal energy); given (a slit)."""
+
+
+KINDS = ("uncracked", "root", "tip", "given")
+"""The names of the kinds above, by their code."""
+
+CRACK_COLUMNS = ("time_s", "family", "kind", "cell", "x_m", "y_m", "line_m")
+"""cracks.csv, one row per cell that joined a crack, in the order they joined (within a step: the
+warp's first, then by cell number): ``time_s`` the t_n of the step whose strains cracked it
+(:attr:`YarnCrack.time`); ``family`` warp or fill, the yarn that broke; ``kind`` root, tip or
+given (:data:`KINDS`); ``cell`` its local number; ``x_m``, ``y_m`` its reference centre (m);
+``line_m`` the position x . d_i of the crack's line it joined (m)."""
 
 
 def cell_extents(corners: np.ndarray, direction) -> tuple[np.ndarray, np.ndarray]:
@@ -109,6 +125,9 @@ class YarnCrack:
         # the laws the points are asked with: the tip's until a cell starts a crack of its own
         self.mu_crit, self.scale = self.tip[0].copy(), self.tip[1].copy()
         self.held = np.zeros(2, np.int64)   # cell-steps whose new damage was taken back, per family
+        self.time = 0.0
+        """Time stamp (s) of the cracks started from now on: the run sets it before each step."""
+        self._joined: list[np.ndarray] = []   # rows of CRACK_COLUMNS not yet handed out
 
     @classmethod
     def on_cells(cls, corners, directions, fabric, points_per_cell: int = 1, laws=None, comm=None):
@@ -139,12 +158,19 @@ class YarnCrack:
         self.line[family, cells] = float(line)
         self._cracks_added(family, cells)
 
+    def new_cracks(self) -> np.ndarray:
+        """The cells that joined a crack since the last call: rows of :data:`CRACK_COLUMNS`
+        (family and kind as their codes: 0 warp, 1 fill; :data:`KINDS`)."""
+        rows = np.concatenate(self._joined) if self._joined else np.zeros((0, len(CRACK_COLUMNS)))
+        self._joined = []
+        return rows
+
     def summary(self) -> dict:
         """Per family (warp, fill): the cells that started a crack (``roots``), that cracked on a
         crack's line (``tips``), that were cut at the start (``given``), and the cell-steps whose
-        new damage was taken back (``held``: beside a crack; or away from any and short of the
-        segment's own strength, counted once: such a cell is then asked with the segment's law,
-        under which it has no new damage to take back, until a crack is added near it)."""
+        new damage was taken back (``held``: off every crack's line and short of the segment's
+        own strength, counted once: such a cell is then asked with the segment's law, under which
+        it has no new damage to take back, until a crack is added near it)."""
         return {name: {"roots": int(np.count_nonzero(self.kind[i] == ROOT)),
                        "tips": int(np.count_nonzero(self.kind[i] == TIP)),
                        "given": int(np.count_nonzero(self.kind[i] == GIVEN)), "held": int(self.held[i])}
@@ -155,9 +181,14 @@ class YarnCrack:
         return {"critical_stretch": self.mu_crit[:, points], "softening_scale": self.scale[:, points]}
 
     def _cracks_added(self, family: int, cells: np.ndarray) -> None:
-        """Mark stale the classification of every cell whose neighbourhood may hold one of the
-        newly cracked ``cells`` of ``family`` (all within the largest radius: a superset)."""
+        """Record the newly cracked ``cells`` of ``family`` (:meth:`new_cracks`) and mark stale the
+        classification of every cell whose neighbourhood may hold one of them (all within the
+        largest radius: a superset)."""
         if cells.size:
+            n = cells.size
+            self._joined.append(np.column_stack((np.full(n, self.time), np.full(n, family),
+                                                 self.kind[family, cells], cells, self.centres[cells],
+                                                 self.line[family, cells])))
             near = self.tree.query_ball_point(self.centres[cells], self._reach)
             near = np.fromiter(chain.from_iterable(near), np.int64)
             self._stale[family, near] = True
@@ -185,8 +216,8 @@ class YarnCrack:
     def _classify(self, family: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(state, line) of candidate ``cells`` against the cracks of ``family`` now: TIP with the
         line that crosses it (the nearest such cell's), UNCRACKED where cracked cells are near but
-        none crosses it (held), ROOT where none is near (a crack of its own if the segment's law
-        damages it)."""
+        none crosses it, ROOT where none is near (either starts a crack of its own if the
+        segment's law damages it)."""
         near = self.tree.query_ball_point(self.centres[cells], self.radius[cells])
         sizes = np.fromiter(map(len, near), np.int64, cells.size)
         other = np.fromiter(chain.from_iterable(near), np.int64, int(sizes.sum()))
@@ -224,8 +255,9 @@ class YarnCrack:
             tips = cells[state == TIP]
             self.kind[i, tips], self.line[i, tips] = TIP, line[state == TIP]
             self._cracks_added(i, tips)
-            held = cells[state == UNCRACKED]
-            roots = cells[state == ROOT]
+            # beside a crack (UNCRACKED) or far from any (ROOT): the segment's own law decides
+            roots = cells[state != TIP]
+            held = np.zeros(0, np.int64)
             if roots.size:
                 at = np.flatnonzero(np.isin(cell_of, roots))
                 mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
@@ -241,11 +273,10 @@ class YarnCrack:
                 self._use_law(i, started, segment=True)
                 b[:, at[go]] = full[:, go]
                 redo.append(at[go])
-                waiting = np.setdiff1d(roots, started)
-                # far from any crack and short of the segment's strength: asked with the segment's
-                # law until a crack is added near (the tip's law would only be taken back again)
-                self._use_law(i, waiting[~self._stale[i, waiting]], segment=True)
-                held = np.concatenate((held, waiting))
+                held = np.setdiff1d(roots, started)
+                # short of the segment's strength: asked with the segment's law until a crack is
+                # added near (the tip's law would only be taken back again)
+                self._use_law(i, held[~self._stale[i, held]], segment=True)
             self.held[i] += held.size
             back = np.flatnonzero(np.isin(cell_of, held) & new)
             b[i, back] = a_old[i, back]

@@ -19,6 +19,9 @@ a run id that ``summary.json`` repeats: a folder never mixes two runs' results.
 * ``history.csv``: one row per history interval, written while the run goes (rank 0).
 * ``removed_cells.csv``: one row per removed cell, gathered to rank 0 and written in the step
   that removed it (columns: :data:`~fabric_fenicsx.impact.removal_log.REMOVED_CELL_COLUMNS`).
+* ``cracks.csv``: with ``material.failure = "yarn_crack"``, one row per cell that joined a
+  crack, written in the step it joined (columns:
+  :data:`~fabric_fenicsx.fem.yarn_crack.CRACK_COLUMNS`).
 * ``summary.json``: the run's summary with its run id (rank 0).
 * ``velocity_history.png`` (projectile velocity and contact force against time) and
   ``damage_map.png`` (final SDV1, SDV2, SDV3 on the reference fabric, holes left blank) and
@@ -50,8 +53,9 @@ XDMF_NAME = "impact.xdmf"
 DATA_NAME = "impact.bin"
 H5_NAME = "impact.h5"  # written by earlier versions: removed like the others
 REMOVED_NAME = "removed_cells.csv"
+CRACKS_NAME = "cracks.csv"
 VIEWER_NAME = "paraview_view.py"
-OWNED_FILES = ("run.json", "history.csv", REMOVED_NAME, "summary.json", XDMF_NAME, DATA_NAME, H5_NAME, VIEWER_NAME,
+OWNED_FILES = ("run.json", "history.csv", REMOVED_NAME, CRACKS_NAME, "summary.json", XDMF_NAME, DATA_NAME, H5_NAME, VIEWER_NAME,
                "velocity_history.png", "damage_map.png", "damage.npz", "snapshots.png", "impact.gif")
 """Every file an impact run writes into its folder; a new run removes them first."""
 
@@ -327,6 +331,7 @@ class ImpactOutput:
         self.removed_rows: list[np.ndarray] = []
         """Every rank's removed-cell rows so far (rank 0), as written to removed_cells.csv."""
         self._removed = None
+        self._cracks = None
         if self.rank0:
             self._removed_file = open(self.out_dir / REMOVED_NAME, "w", newline="")
             self._removed = csv.writer(self._removed_file)
@@ -365,6 +370,21 @@ class ImpactOutput:
             self._removed.writerow([RULES[int(v)] if j == rule else str(int(v)) if j == cell else f"{v:.10g}"
                                     for j, v in enumerate(row)])
         self._removed_file.flush()
+
+    def cracks(self, rows: np.ndarray) -> None:
+        """Append cells that joined a crack (rows of
+        :data:`~fabric_fenicsx.fem.yarn_crack.CRACK_COLUMNS`, codes for family and kind) to
+        cracks.csv, opened at the first call (one rank: the rule that cracks runs on one)."""
+        from fabric_fenicsx.fem.yarn_crack import CRACK_COLUMNS, KINDS
+
+        if self._cracks is None:
+            self._cracks_file = open(self.out_dir / CRACKS_NAME, "w", newline="")
+            self._cracks = csv.writer(self._cracks_file)
+            self._cracks.writerow(CRACK_COLUMNS)
+        for t, family, kind, cell, x, y, line in rows:
+            self._cracks.writerow([f"{t:.10g}", ("warp", "fill")[int(family)], KINDS[int(kind)],
+                                   str(int(cell)), f"{x:.10g}", f"{y:.10g}", f"{line:.10g}"])
+        self._cracks_file.flush()
 
     def all_removed_cells(self) -> np.ndarray:
         """Every removed-cell row written so far (rank 0; an empty table elsewhere)."""
@@ -494,3 +514,6 @@ class ImpactOutput:
         if self._removed is not None:
             self._removed_file.close()
             self._removed = None
+        if self._cracks is not None:
+            self._cracks_file.close()
+            self._cracks = None

@@ -342,6 +342,8 @@ class ImpactSimulation:
     def _fabric_step(self, loop: _Loop, t_n: float, f_ext):
         """The membrane from t_n to t_n + dt; numerical trouble becomes an :class:`ImpactError`."""
         tiles = self._tile_seconds()
+        if self.failure is not None:
+            self.failure.time = t_n
         try:
             return self.cd.step(loop.dt, f_ext)
         except trouble.STEP_ERRORS as err:
@@ -386,6 +388,10 @@ class ImpactSimulation:
         if sums["deleted"] or sums["eroded"]:
             self.removal.update_nodes()
             self.output.removed_cells(self.removal.new_records())
+        if self.failure is not None:
+            cracked = self.failure.new_cracks()
+            if cracked.size:
+                self.output.cracks(cracked)
         ledger.book_step(sums, maxima)
         ledger.book_yarn_damage(t_n, maxima["warp_damage"], maxima["fill_damage"])
         if -sums["central_uz"] >= ledger.peak_deflection:
