@@ -12,14 +12,10 @@ This rule gives the cells both, per yarn family i (warp 0, fill 1), with directi
   Appl. Mech. Eng. 196 (2006) 304-320, with the crack's direction that of the other yarns):
   every cracked cell carries the position ``line`` = x . d_i of its crack, a line along d_j. A
   cell whose yarn i would start to damage is admitted to soften if the line of a cracked cell
-  within ``exclusion`` of its own size crosses it (the crack's tip runs on along the line, with
-  the tip's law). Any other cell, beside a crack or far from any, is asked with the segment's own
-  law: a yarn breaks wherever it reaches its own strength, and there it starts a crack of its own
-  on the line through its centre (a root); short of that strength its new damage is taken back
-  (it lies beside the crack, which runs along the yarns, not along the cells). Holding a cell
-  beside a crack whatever its strain (the rule's first form) let a straight crack through the
-  first yarn to break at a projectile's edge run across the yarns the projectile loads, wherever
-  along the edge the mesh put that first break (docs/ballistic_limit.md).
+  within ``exclusion`` of its own size crosses it (the crack's tip runs on along the line); it is
+  held intact if cracked cells are near but none of their lines crosses it (it lies beside the
+  crack, which runs along the yarns, not along the cells); with no cracked cell near it starts a
+  crack of its own on the line through its centre (a root).
 * **How much energy a cell takes** (:mod:`fabric_fenicsx.material.crack_energy`): a cell at a
   crack's tip breaks with the work of one segment per yarn: its law is that of equal energy over
   its extent c along d_i, ratio h0 / c. A root keeps the segment's own law (its strength: where
@@ -47,11 +43,10 @@ __all__ = ["YarnCrack", "EXCLUSION", "CRACK_COLUMNS", "KINDS", "cell_extents"]
 
 EXCLUSION = 3.0
 """Radius of a cell's neighbourhood, in units of its diameter (longest corner-to-corner
-distance): a cracked cell nearer than this whose line crosses it gives it the tip's law; of the
-cells that start cracks in one step, one per neighbourhood does (the others are asked again the
-next step, with the new crack near). On a mesh not aligned with the yarns the strain beside a
-crack's tip can exceed that on its line a few cells away: with 1.5 diameters a second crack
-started 2.5 mm beside the first ahead of its tip on the 30-degree 1 mm tear-test mesh."""
+distance): the cracked cells nearer than this decide whether it may soften, and a new crack
+starts only farther away. On a mesh not aligned with the yarns the strain beside a crack's tip
+can exceed that on its line a few cells away: with 1.5 diameters a second crack started 2.5 mm
+beside the first ahead of its tip on the 30-degree 1 mm tear-test mesh; 3 hold it on the line."""
 
 UNCRACKED, ROOT, TIP, GIVEN = 0, 1, 2, 3
 """What a cell is in a family's crack: not cracked; the start of a crack (the segment's law);
@@ -168,9 +163,9 @@ class YarnCrack:
     def summary(self) -> dict:
         """Per family (warp, fill): the cells that started a crack (``roots``), that cracked on a
         crack's line (``tips``), that were cut at the start (``given``), and the cell-steps whose
-        new damage was taken back (``held``: off every crack's line and short of the segment's
-        own strength, counted once: such a cell is then asked with the segment's law, under which
-        it has no new damage to take back, until a crack is added near it)."""
+        new damage was taken back (``held``: beside a crack; or away from any and short of the
+        segment's own strength, counted once: such a cell is then asked with the segment's law,
+        under which it has no new damage to take back, until a crack is added near it)."""
         return {name: {"roots": int(np.count_nonzero(self.kind[i] == ROOT)),
                        "tips": int(np.count_nonzero(self.kind[i] == TIP)),
                        "given": int(np.count_nonzero(self.kind[i] == GIVEN)), "held": int(self.held[i])}
@@ -216,8 +211,8 @@ class YarnCrack:
     def _classify(self, family: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(state, line) of candidate ``cells`` against the cracks of ``family`` now: TIP with the
         line that crosses it (the nearest such cell's), UNCRACKED where cracked cells are near but
-        none crosses it, ROOT where none is near (either starts a crack of its own if the
-        segment's law damages it)."""
+        none crosses it (held), ROOT where none is near (a crack of its own if the segment's law
+        damages it)."""
         near = self.tree.query_ball_point(self.centres[cells], self.radius[cells])
         sizes = np.fromiter(map(len, near), np.int64, cells.size)
         other = np.fromiter(chain.from_iterable(near), np.int64, int(sizes.sum()))
@@ -255,9 +250,8 @@ class YarnCrack:
             tips = cells[state == TIP]
             self.kind[i, tips], self.line[i, tips] = TIP, line[state == TIP]
             self._cracks_added(i, tips)
-            # beside a crack (UNCRACKED) or far from any (ROOT): the segment's own law decides
-            roots = cells[state != TIP]
-            held = np.zeros(0, np.int64)
+            held = cells[state == UNCRACKED]
+            roots = cells[state == ROOT]
             if roots.size:
                 at = np.flatnonzero(np.isin(cell_of, roots))
                 mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
@@ -273,10 +267,11 @@ class YarnCrack:
                 self._use_law(i, started, segment=True)
                 b[:, at[go]] = full[:, go]
                 redo.append(at[go])
-                held = np.setdiff1d(roots, started)
-                # short of the segment's strength: asked with the segment's law until a crack is
-                # added near (the tip's law would only be taken back again)
-                self._use_law(i, held[~self._stale[i, held]], segment=True)
+                waiting = np.setdiff1d(roots, started)
+                # far from any crack and short of the segment's strength: asked with the segment's
+                # law until a crack is added near (the tip's law would only be taken back again)
+                self._use_law(i, waiting[~self._stale[i, waiting]], segment=True)
+                held = np.concatenate((held, waiting))
             self.held[i] += held.size
             back = np.flatnonzero(np.isin(cell_of, held) & new)
             b[i, back] = a_old[i, back]

@@ -68,8 +68,10 @@ def test_new_damage_is_kept_on_the_line_taken_back_beside_it_and_starts_a_crack_
     full_strain = rule.base[0][0, 0] - 1.0
     E1 = np.zeros(n * n)
     on_line, beside, far_strong, far_weak = cell(7, 3), cell(6, 3), cell(1, 12), cell(13, 12)
+    beside_strong = cell(9, 1)                                            # 2 cells beside the slit
     E1[[on_line, beside, far_weak]] = 0.5 * (tip_strain + full_strain)   # past the tip's law only
-    E1[far_strong] = full_strain + 0.001                                  # past the segment's law
+    E1[[far_strong, beside_strong]] = full_strain + 0.001                 # past the segment's law
+    rule.time = 1.5e-3
     a_old = np.ones((2, n * n))
     surrogate = ThresholdSurrogate()
     b_new = np.stack(surrogate.update(E1, np.zeros(n * n), a_old[0], a_old[1], *rule.laws(points).values())[2:])
@@ -80,8 +82,17 @@ def test_new_damage_is_kept_on_the_line_taken_back_beside_it_and_starts_a_crack_
     assert rule.line[0, far_strong] == pytest.approx(1.5 * h)       # its own line, through its centre
     assert rule.mu_crit[0, far_strong] == rule.base[0][0, far_strong]
     assert b[0, far_weak] == 1.0 and rule.kind[0, far_weak] == UNCRACKED
+    assert b[0, beside_strong] == 1.0 and rule.kind[0, beside_strong] == UNCRACKED   # beside: held
     assert rule.kind[0, cell(7, 0)] == GIVEN and np.all(rule.kind[1] == UNCRACKED)
-    assert set(redo) == {beside, far_strong, far_weak}
+    assert set(redo) == {beside, far_strong, far_weak, beside_strong}
+    # cracks.csv's rows: the slit's three cells at t = 0, then the tip and the root at 1.5 ms
+    rows = rule.new_cracks()
+    assert rows.shape == (5, 7) and rule.new_cracks().shape == (0, 7)
+    assert rows[:3, 0].tolist() == [0.0] * 3 and np.all(rows[:3, 2] == GIVEN)
+    joined = {int(r[3]): r for r in rows[3:]}
+    assert set(joined) == {on_line, far_strong} and np.all(rows[3:, 0] == 1.5e-3)
+    assert joined[on_line][2] == TIP and joined[on_line][6] == pytest.approx(7.5 * h)
+    assert joined[far_strong][2] == ROOT and joined[far_strong][4:6] == pytest.approx([1.5 * h, 12.5 * h])
 
 
 def test_cells_starting_cracks_in_one_step_keep_apart():

@@ -1,6 +1,6 @@
 """The scene's failure rule (``material.failure``, fabric_fenicsx.impact.setup.FAILURE_RULES):
 a bad name is refused; the yarn crack runs an impact whose removed cells lie on lines along the
-fill, says what its cracks did in summary.json, and refuses more than one rank in one line."""
+fill, says what its cracks did in summary.json and cracks.csv, and refuses more than one rank in one line."""
 
 import csv
 import json
@@ -47,6 +47,16 @@ def test_a_yarn_crack_impact_tears_along_the_fill(tmp_path):
     bands = np.split(y, np.flatnonzero(np.diff(y) > 0.008) + 1)    # two cells apart: another band
     assert len(warp) > 10 and len(bands) <= cracks["warp"]["roots"]
     assert max(b.ptp() for b in bands) < 0.25 * x.ptp()
+    with open(tmp_path / "run" / "cracks.csv") as f:
+        joined = list(csv.DictReader(f))
+    for family in ("warp", "fill"):
+        for kind in ("root", "tip"):
+            assert sum(r["family"] == family and r["kind"] == kind for r in joined) == cracks[family][kind + "s"]
+    times = [float(r["time_s"]) for r in joined]
+    assert times == sorted(times) and 0.0 < times[0] <= float(rows[0]["time_s"])   # a crack before removal
+    # each warp tip lies on the line of a warp root's crack (x . d_warp = y here: warp along y)
+    roots = {float(r["line_m"]) for r in joined if r["family"] == "warp" and r["kind"] == "root"}
+    assert all(float(r["line_m"]) in roots for r in joined if r["family"] == "warp" and r["kind"] == "tip")
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
