@@ -192,10 +192,12 @@ class YarnStress:
 
     def point_fields(self) -> dict[str, np.ndarray]:
         """The fields an impact run writes (:data:`~fabric_fenicsx.material.contract.POINT_FIELDS`)
-        at every owned point after the last :meth:`update`."""
+        at every owned point after the last :meth:`update`, and each point's largest yarn strains
+        while live (``E1_peak``, ``E2_peak``: :attr:`E_peak`, written to damage.npz)."""
         sdv1 = ((self.alpha1 > 0) | (self.alpha2 > 0)).astype(float)
         fields = {"P1": self.P_el[0] + self.P_v[0], "P2": self.P_el[1] + self.P_v[1], "E1": self.E1,
-                  "E2": self.E2, "SDV1": sdv1, "SDV2": self.alpha1, "SDV3": self.alpha2}
+                  "E2": self.E2, "SDV1": sdv1, "SDV2": self.alpha1, "SDV3": self.alpha2,
+                  "E1_peak": self.E_peak[0], "E2_peak": self.E_peak[1]}
         if self.mu_crit is not None:
             fields.update(mu_crit1=self.mu_crit[0], mu_crit2=self.mu_crit[1])
         return fields

@@ -25,7 +25,9 @@ a run id that ``summary.json`` repeats: a folder never mixes two runs' results.
 * ``summary.json``: the run's summary with its run id (rank 0).
 * ``velocity_history.png`` (projectile velocity and contact force against time) and
   ``damage_map.png`` (final SDV1, SDV2, SDV3 on the reference fabric, holes left blank) and
-  ``damage.npz`` (the same as arrays: reference cell corners ``quads``, ``live``, ``SDV1-3``),
+  ``damage.npz`` (the same as arrays: reference cell corners ``quads``, ``live``, ``SDV1-3``;
+  and, where the material keeps them, ``E1_peak``, ``E2_peak``: each cell's largest warp and
+  fill Green strain over the run while it was live, the largest over its points),
   rendered off-screen with matplotlib and pyvista.
 """
 
@@ -431,7 +433,9 @@ class ImpactOutput:
         values = {k: cell_average(point_fields[k], m.quadrature_weights_detJ, m.n_points_per_cell)
                   for k in ("SDV1", "SDV2", "SDV3", "mu_crit1") if k in point_fields}
         values["SDV1"] = np.where(live_cells, values["SDV1"], 0.0)
-        gathered = self.comm.gather((quads, live_cells, values), root=0)
+        peaks = {k: point_fields[k].reshape(-1, m.n_points_per_cell).max(axis=1)
+                 for k in ("E1_peak", "E2_peak") if k in point_fields}
+        gathered = self.comm.gather((quads, live_cells, values, peaks), root=0)
         if not self.rank0:
             return
         self._velocity_plot(summary)
@@ -464,8 +468,9 @@ class ImpactOutput:
         quads = np.concatenate([g[0] for g in gathered])
         live = np.concatenate([g[1] for g in gathered])
         values = {k: np.concatenate([g[2][k] for g in gathered]) for k in gathered[0][2]}
+        peaks = {k: np.concatenate([g[3][k] for g in gathered]) for k in gathered[0][3]}
         # the same final state as numbers, for pictures of several runs (fabric-fenicsx study)
-        np.savez_compressed(self.out_dir / "damage.npz", quads=quads[:, :, :2], live=live, **values)
+        np.savez_compressed(self.out_dir / "damage.npz", quads=quads[:, :, :2], live=live, **values, **peaks)
         if not os.environ.get("DISPLAY"):
             os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
         import pyvista

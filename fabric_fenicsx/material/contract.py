@@ -110,7 +110,8 @@ class QuadratureMaterial(Protocol):
       points, at the strains extrapolated ``lookahead`` steps along their last increase;
     - ``tension()``: yarn tensions P_i / lambda_i (N/m, shape (2, n)) of the last update;
     - ``point_fields()``: the fields to write, a subset of :data:`POINT_FIELDS` keyed by name,
-      each of shape (n,) (units as there);
+      each of shape (n,) (units as there); optionally also ``mu_crit1``, ``mu_crit2`` (a strength
+      scatter's laws) and ``E1_peak``, ``E2_peak`` (each point's largest yarn Green strains);
     - ``energies()``: this rank's accumulated energies (J) keyed by :data:`ENERGIES`;
     - ``diagnostics()``: this rank's counters (int) of evaluations outside the law's range,
       reported in summary.json (``{}`` for none);

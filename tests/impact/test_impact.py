@@ -352,6 +352,14 @@ def test_energy_balance_with_damage_off_and_outputs(tmp_path):
                 "energy_error", "wall_time_s", "n_cells", "n_steps", "dt", "n_ranks"):
         assert key in summary, key
     assert summary["n_cells"] == 256 and summary["n_ranks"] == 1
+    # damage.npz: each cell's largest yarn strain over the run, whose largest is the summary's
+    damage = np.load(out / "damage.npz")
+    for key, family in (("E1_peak", "warp"), ("E2_peak", "fill")):
+        largest = summary["largest_yarn_strain"][family]
+        assert damage[key].shape == (256,) and damage[key].max() > 0.0
+        assert damage[key].max() == pytest.approx(largest["green_strain"], rel=1e-12)
+        hottest = damage["quads"][np.argmax(damage[key])].mean(axis=0)
+        assert hottest == pytest.approx(largest["position"], abs=1e-9)
     header = (out / "history.csv").read_text().splitlines()[0].split(",")
     for col in ("time", "projectile_z", "projectile_velocity", "contact_force", "fabric_kinetic",
                 "stored_energy", "damage_dissipation", "deleted_cells"):
