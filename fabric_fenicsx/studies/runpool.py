@@ -54,7 +54,7 @@ from pathlib import Path
 
 from fabric_fenicsx.atomic import write_atomic
 
-__all__ = ["Run", "run_all", "PoolStopped", "Progress", "duration", "incomplete", "expected_files", "surroundings",
+__all__ = ["Run", "run_all", "stored_summary", "PoolStopped", "Progress", "duration", "incomplete", "expected_files", "surroundings",
            "write_atomic", "DISK_ERRNOS"]
 
 DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO)
@@ -136,6 +136,12 @@ def _record(path: Path, settings: dict) -> dict | None:
 
     record = load_if_same(path, settings)
     return record if isinstance(record, dict) and record else None
+
+
+def stored_summary(run: Run, out_dir) -> dict | None:
+    """The complete stored result of ``run`` in ``out_dir`` (its summary, or its failure in the
+    model), or None: what :func:`run_all` would reuse instead of running it."""
+    return _stored(run, Path(out_dir) / run.key)
 
 
 def _stored(run: Run, folder: Path) -> dict | None:

@@ -20,7 +20,10 @@ runs, when the design ends (a sharp limit, or no bracket between the floor and t
 when more than half of four or more runs counted no outcome (undecided or failed: the scene's
 ``run.t_end`` is too short for it, or it fails). The design is a pure function of the shots so far and batches
 run to their end before the next is chosen, so a resumed estimate chooses the same runs and
-reuses the stored ones (:func:`~fabric_fenicsx.studies.runpool.run_all`).
+reuses the stored ones (:func:`~fabric_fenicsx.studies.runpool.run_all`). Resumed with another
+``jobs``, the design would choose other velocities for the stored runs' folders and run them
+again over them: a complete run stored in a batch's folder is taken at its own velocity instead
+(:func:`stored_velocities`), and the design goes on from it.
 """
 from __future__ import annotations
 
@@ -30,7 +33,7 @@ import numpy as np
 
 from fabric_fenicsx.studies.neyer import NeyerDesign, Shot
 
-__all__ = ["COLUMNS", "TWIN_STEP", "outcome", "member_run", "estimate", "report", "format_report", "format_interval",
+__all__ = ["COLUMNS", "TWIN_STEP", "outcome", "member_run", "stored_velocities", "estimate", "report", "format_report", "format_interval",
            "table_cells", "write_table", "write_report", "write_stopped", "thesis_points", "plot", "figure"]
 
 COLUMNS = ("run", "seed", "velocity", "outcome", "residual_velocity", "absorbed_energy", "viscous_dissipation",
@@ -73,6 +76,33 @@ def member_run(scene: str, overrides, i: int, v: float, first_seed: int | None):
     return Run(f"run_{i:03d}", str(scene), (*overrides, *extra))
 
 
+def stored_velocities(scene: str, overrides, out_dir, start: int, stop: int, first_seed: int | None) -> list[float]:
+    """The velocities (m/s, as the design chose them) of the complete runs stored in run_<start>,
+    run_<start + 1>, ... (up to run_<stop - 1>) for this estimate, until the first folder without
+    one: a run is taken when :func:`member_run` at its stored velocity has exactly its settings
+    and model version (:func:`~fabric_fenicsx.studies.runpool.stored_summary`)."""
+    import json
+    from pathlib import Path
+
+    from fabric_fenicsx.studies.runpool import stored_summary
+
+    found = []
+    for i in range(start, stop):
+        folder = Path(out_dir) / f"run_{i:03d}"
+        try:
+            ran = float(json.loads((folder / "summary.json").read_text())["settings"]["projectile"]["velocity"])
+        except (OSError, ValueError, KeyError, TypeError):
+            break
+        nominal = ran if first_seed is not None else ran / (1.0 + i * TWIN_STEP)
+        # the design's velocity, to the digits it was rounded to
+        match = next((v for v in (round(nominal, d) for d in range(2, 13))
+                      if stored_summary(member_run(scene, overrides, i, v, first_seed), out_dir) is not None), None)
+        if match is None:
+            break
+        found.append(match)
+    return found
+
+
 def _row(i: int, v: float, seed, phase: str, summary: dict) -> dict:
     """Run i's row: an ensemble member's row (:func:`~fabric_fenicsx.studies.ensemble.member_row`)
     with the outcome, the design's phase and the damage's extent."""
@@ -110,6 +140,8 @@ def estimate(scene: str, overrides, out_dir, design: NeyerDesign, ci: float = 2.
         shots = _shots(rows)
         phase = design.phase(shots)
         velocities = design.next(shots, min(jobs, max_runs - len(rows)))
+        stored = stored_velocities(scene, overrides, out_dir, len(rows), len(rows) + len(velocities), first_seed)
+        velocities = stored + velocities[len(stored):]
         if not velocities:
             why = {"sharp": f"a sharp limit: no overlap of the outcomes in a gap of {design.resolution:g} m/s",
                    "unbracketed": "no bracket: perforated at the floor or held at the ceiling"}[phase]

@@ -116,3 +116,10 @@ def test_the_command_on_tiny_impact_runs_with_two_jobs_goes_on_where_it_stopped(
     assert rep["runs"] == 6 and rep["counts"]["held"] >= 1 and rep["counts"]["perforated"] >= 1
     assert "V50" in capsys.readouterr().out or rep["bracket"] is not None
     assert (out / "v50.png").stat().st_size > 0
+    # resumed with one job, the design would start elsewhere: the stored runs are taken as they are
+    stamps = [(out / f"run_{i:03d}" / "summary.json").stat().st_mtime_ns for i in range(6)]
+    base[base.index("--jobs") + 1] = "1"
+    assert main([*base, "--max-runs", "7"]) == 0
+    resumed = (out / "v50.csv").read_text().splitlines()
+    assert resumed[:7] == again and len(resumed) == 8
+    assert [(out / f"run_{i:03d}" / "summary.json").stat().st_mtime_ns for i in range(6)] == stamps
