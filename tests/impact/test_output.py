@@ -167,9 +167,11 @@ def test_a_new_run_removes_the_last_runs_output(tmp_path):
     out = tmp_path / "run"
     first = run_impact(tiny(["run.t_end=1e-5", "output.png=true", "output.animation=true"]), out, verbose=False)
     written = {p.name for p in out.iterdir()}
-    assert written == set(OWNED_FILES) - {"impact.h5"}          # every file a run can write
+    # every file a run can write (cracks.csv: with material.failure = "yarn_crack" only)
+    assert written == set(OWNED_FILES) - {"impact.h5", "cracks.csv"}
     (out / "notes.txt").write_text("mine")
     (out / "impact.h5").write_text("an older version's data")
+    (out / "cracks.csv").write_text("a yarn-crack run's cracks")
     second = run_impact(tiny(["run.t_end=1e-5", "projectile.velocity=50", "output.xdmf_interval=0",
                               "output.png=false"]), out, verbose=False)
     assert {p.name for p in out.iterdir()} == {"run.json", "history.csv", "removed_cells.csv", "summary.json",
