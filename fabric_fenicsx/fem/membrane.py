@@ -319,9 +319,9 @@ class Membrane:
         :meth:`internal_force`; None when no term does. Their work is part of the internal work
         and is booked apart as dissipation (``EnergyRecord.dissipated``). Written into ``out``
         (owned dofs) if given, else into a new array."""
-        if not any(t.dissipative for t in self.terms):
-            return None
         terms = [t for t in self.terms if t.dissipative]
+        if not terms:
+            return None
         if any(t.per_cell for t in terms):
             raise NotImplementedError("a per_cell term cannot declare its work dissipated: give it "
                                       "a UFL integrand")

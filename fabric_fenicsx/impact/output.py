@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from fabric_fenicsx.fem.yarn_crack import CRACK_COLUMNS, KINDS
 from fabric_fenicsx.impact.removal_log import REMOVED_CELL_COLUMNS, RULES
 
 __all__ = ["ImpactOutput", "XdmfSeries", "RunFrames", "read_run", "start_run", "cell_average",
@@ -377,8 +378,6 @@ class ImpactOutput:
         """Append cells that joined a crack (rows of
         :data:`~fabric_fenicsx.fem.yarn_crack.CRACK_COLUMNS`, codes for family and kind) to
         cracks.csv, opened at the first call (one rank: the rule that cracks runs on one)."""
-        from fabric_fenicsx.fem.yarn_crack import CRACK_COLUMNS, KINDS
-
         if self._cracks is None:
             self._cracks_file = open(self.out_dir / CRACKS_NAME, "w", newline="")
             self._cracks = csv.writer(self._cracks_file)
