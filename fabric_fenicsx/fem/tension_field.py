@@ -32,7 +32,7 @@ from fabric_fenicsx.material.unitcell import ALPHA_BROKEN
 from fabric_fenicsx.surrogate.kernels import tension_field as curve_kernel
 from fabric_fenicsx.surrogate.kernels.interp import ROOT_FOUND, ROOT_NONE
 
-__all__ = ["relaxed_strains", "RelaxStats", "ForceFreeCurves", "CURVE_TOL", "CURVE_INTERVALS"]
+__all__ = ["relaxed_strains", "relax_in_place", "RelaxStats", "ForceFreeCurves", "CURVE_TOL", "CURVE_INTERVALS"]
 
 CURVE_TOL = 1e-11
 """Largest difference in strain between the curve and the search's root (Newton to 1e-15) at an
@@ -143,6 +143,9 @@ class ForceFreeCurves:
         return out, relaxed, np.flatnonzero(todo == curve_kernel.SEARCH)
 
 
+_NO_GUESS = np.empty(0)   # curve_kernel.candidates: no start guess
+
+
 def relaxed_strains(surrogate, E1, E2, a1, a2, stats: RelaxStats | None = None, guess=None,
                     curves: ForceFreeCurves | None = None):
     """(E1r, E2r): the strains of a tension field (module docstring), vectorised.
@@ -158,14 +161,39 @@ def relaxed_strains(surrogate, E1, E2, a1, a2, stats: RelaxStats | None = None, 
     ``curves``: None (every candidate searches) or the :class:`ForceFreeCurves` of
     ``surrogate``, which give the intact-layer points their force-free strain without a search."""
     E = [np.array(E1, dtype=float, copy=True), np.array(E2, dtype=float, copy=True)]
+    relax_in_place(surrogate, E, a1, a2, stats, guess, curves)
+    return E[0], E[1]
+
+
+def relax_in_place(surrogate, E, a1, a2, stats: RelaxStats | None = None, guess=None,
+                   curves: ForceFreeCurves | None = None) -> None:
+    """:func:`relaxed_strains` of the list E = [E1, E2] (float arrays, overwritten; the curves
+    put new arrays in the list). Without curves the candidates are gathered and the roots put
+    back by compiled passes (:func:`curve_kernel.candidates`, :func:`curve_kernel.place_roots`)."""
+    n = E[0].size
+    if curves is None:
+        a1, a2 = np.ascontiguousarray(a1, dtype=float), np.ascontiguousarray(a2, dtype=float)
+        k, gathered = np.empty(n, np.int64), np.empty((5, n))
     for j in (0, 1):
         i = 1 - j
-        if curves is not None:
-            E[j], relaxed, k = curves.relax(j, E[j], E[i], a1, a2)
+        if curves is None:
+            start = _NO_GUESS if guess is None else np.ascontiguousarray(guess[j], dtype=float)
+            m = curve_kernel.candidates(E[j], E[i], a1, a2, start, k, *gathered)
+            if m == 0:
+                continue
+            other, own, b1, b2, g = gathered[:, :m]
+            root, status = force_free_strain(surrogate, j, other, own, b1, b2,
+                                             None if guess is None else g)
+            found, none = curve_kernel.place_roots(E[j], k[:m], np.asarray(root, dtype=float),
+                                                   np.asarray(status, dtype=np.int8), ROOT_FOUND,
+                                                   ROOT_NONE)
             if stats is not None:
-                stats.relaxed += relaxed
-        else:
-            k = np.flatnonzero((E[j] < 0.0) & (E[i] > 0.0))
+                stats.relaxed += found
+                stats.no_root += none
+            continue
+        E[j], relaxed, k = curves.relax(j, E[j], E[i], a1, a2)
+        if stats is not None:
+            stats.relaxed += relaxed
         if k.size == 0:
             continue
         root, status = force_free_strain(surrogate, j, E[i][k], E[j][k], a1[k], a2[k],
@@ -174,4 +202,3 @@ def relaxed_strains(surrogate, E1, E2, a1, a2, stats: RelaxStats | None = None, 
         if stats is not None:
             stats.relaxed += int(np.count_nonzero(status == ROOT_FOUND))
             stats.no_root += int(np.count_nonzero(status == ROOT_NONE))
-    return E[0], E[1]

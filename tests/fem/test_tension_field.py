@@ -4,7 +4,8 @@ strain cycle (they are the gradient of an energy)."""
 import numpy as np
 import pytest
 
-from fabric_fenicsx.fem.tension_field import CURVE_TOL, ForceFreeCurves, RelaxStats, relaxed_strains
+from fabric_fenicsx.fem.tension_field import (CURVE_TOL, ForceFreeCurves, RelaxStats, force_free_strain,
+                                              relaxed_strains)
 from fabric_fenicsx.fem.yarn_stress import YarnStress
 from fabric_fenicsx.surrogate.kernels.interp import ROOT_FOUND, ROOT_NONE, ROOT_TENSION
 
@@ -163,3 +164,82 @@ def test_force_free_curves_give_the_searched_strains_within_their_tolerance(coar
     # the stresses the membrane gets: within 2 CURVE_TOL x |dP_i/dE_j|
     P = [sur.lookup(*E, a1, a2, ("P1", "P2")) for E in (searched, tabulated)]
     assert np.abs(P[0] - P[1]).max() < 1e-8 * np.abs(P[0]).max()
+
+
+class Recording(Quadratic):
+    """The quadratic stand-in, recording the searches it is asked for, without a root where the
+    crossing yarn is stretched beyond 0.03; its root depends on the start guess where one is
+    given (so a guess gathered from the wrong point shows)."""
+    calls = []
+
+    @classmethod
+    def zero_force_strain(cls, yarn, E_other, lo, hi, a1, a2, guess=None):
+        cls.calls.append(tuple(np.array(x, dtype=float) for x in (E_other, lo, hi, a1, a2))
+                         + (None if guess is None else np.array(guess),))
+        x, status = Quadratic.zero_force_strain(yarn, E_other, lo, hi, a1, a2)
+        far = E_other > 0.03   # no root up to the table's top
+        x, status = np.where(far, lo, x), np.where(far, ROOT_NONE, status)
+        if guess is not None:
+            x = np.where(status == ROOT_FOUND, x + 1e-9 * np.nan_to_num(guess), x)
+        return x, status
+
+
+def _numpy_relaxed_strains(surrogate, E1, E2, a1, a2, stats, guess=None):
+    """relaxed_strains without curves as it was: numpy selections and gathers around the searches."""
+    E = [np.array(E1, dtype=float, copy=True), np.array(E2, dtype=float, copy=True)]
+    for j in (0, 1):
+        i = 1 - j
+        k = np.flatnonzero((E[j] < 0.0) & (E[i] > 0.0))
+        if k.size == 0:
+            continue
+        root, status = force_free_strain(surrogate, j, E[i][k], E[j][k], a1[k], a2[k],
+                                         None if guess is None else guess[j][k])
+        E[j][k] = root
+        stats.relaxed += int(np.count_nonzero(status == ROOT_FOUND))
+        stats.no_root += int(np.count_nonzero(status == ROOT_NONE))
+    return E[0], E[1]
+
+
+def _random_strains(rng, n, spread=0.04):
+    """Strains of both signs with exact zeros of both signs among them, and integrities."""
+    E = rng.uniform(-spread, spread, (2, n))
+    E[:, rng.random(n) < 0.1] = 0.0
+    E[:, rng.random(n) < 0.1] = -0.0
+    return E[0], E[1], rng.uniform(0.2, 1.0, n), rng.uniform(0.2, 1.0, n)
+
+
+@pytest.mark.parametrize("with_guess", [False, True])
+def test_compiled_selections_give_the_bits_of_the_numpy_ones(with_guess):
+    """relaxed_strains (candidates gathered and roots put back by compiled passes) against the
+    numpy selections it replaces: the same searches asked (inputs bit for bit), the same strains
+    and counts, over random strains with roots found, in tension and without a root."""
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 5, 400):
+        E1, E2, a1, a2 = _random_strains(rng, n)
+        guess = rng.uniform(-0.03, 0.0, (2, n)) if with_guess else None
+        results = []
+        for relax in (relaxed_strains, _numpy_relaxed_strains):
+            Recording.calls = []
+            stats = RelaxStats()
+            r = relax(Recording, E1, E2, a1, a2, stats, guess)
+            results.append((r, stats, Recording.calls))
+        (r, stats, calls), (r0, stats0, calls0) = results
+        for x, x0 in zip(r, r0):
+            assert x.dtype == x0.dtype and x.tobytes() == x0.tobytes()
+        assert stats == stats0 and len(calls) == len(calls0)
+        for call, call0 in zip(calls, calls0):
+            for x, x0 in zip(call, call0):
+                assert (x is None and x0 is None) or x.tobytes() == x0.tobytes()
+
+
+def test_compiled_selections_on_the_surrogate(coarse_surrogate):
+    """The same with the surrogate's compiled searches, intact and damaged points."""
+    rng = np.random.default_rng(8)
+    E1, E2, a1, a2 = _random_strains(rng, 300, 0.03)
+    a1[::2] = a2[::2] = 1.0
+    for guess in (None, rng.uniform(-0.03, 0.01, (2, 300))):
+        stats, stats0 = RelaxStats(), RelaxStats()
+        r = relaxed_strains(coarse_surrogate, E1, E2, a1, a2, stats, guess)
+        r0 = _numpy_relaxed_strains(coarse_surrogate, E1, E2, a1, a2, stats0, guess)
+        assert all(x.tobytes() == x0.tobytes() for x, x0 in zip(r, r0))
+        assert stats == stats0 and stats.relaxed > 0

@@ -1,6 +1,7 @@
 """The tension field's force-free strains read from a tabulated curve, compiled (see
 :mod:`fabric_fenicsx.fem.tension_field`, class ``ForceFreeCurves``): one pass over the points
-instead of a Newton search per wrinkled point.
+instead of a Newton search per wrinkled point; and the passes around the searches (the
+candidates gathered, the roots put back).
 """
 
 from __future__ import annotations
@@ -57,3 +58,32 @@ def relax_on_curve(E_own, E_other, a1, a2, broken, x, s, ok, built, step, m, out
             out[n] = X
             relaxed += 1
     return relaxed
+
+
+@njit(cache=True, nogil=True)
+def candidates(E_own, E_other, a1, a2, guess, k, other, own, b1, b2, g):
+    """The points of a yarn that may wrinkle, gathered for its force-free search
+    (:func:`fabric_fenicsx.fem.tension_field.relax_in_place`): compressed (E_own < 0) while the
+    crossing yarn is stretched (E_other > 0). Writes their indices into ``k`` and their E_other,
+    E_own, a1, a2 and start ``guess`` (NaN where ``guess`` is empty: none) into the buffers,
+    in order; returns how many."""
+    m = 0
+    for n in range(E_own.size):
+        if E_own[n] < 0.0 and E_other[n] > 0.0:
+            k[m] = n
+            other[m], own[m], b1[m], b2[m] = E_other[n], E_own[n], a1[n], a2[n]
+            g[m] = guess[n] if guess.size else math.nan
+            m += 1
+    return m
+
+
+@njit(cache=True, nogil=True)
+def place_roots(E_own, k, root, status, found, none):
+    """E_own[k] = root (the searched strains put back) and the numbers of roots with status
+    ``found`` and ``none`` (:func:`fabric_fenicsx.surrogate.kernels.interp.zero_force_strain`)."""
+    n_found = n_none = 0
+    for m in range(k.size):
+        E_own[k[m]] = root[m]
+        n_found += status[m] == found
+        n_none += status[m] == none
+    return n_found, n_none
