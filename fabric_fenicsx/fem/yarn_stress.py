@@ -16,7 +16,7 @@ import numpy as np
 
 from fabric_fenicsx.material.contract import DamageState
 from fabric_fenicsx.material.fabric import Fabric
-from fabric_fenicsx.fem.tension_field import ForceFreeCurves, RelaxStats, relaxed_strains
+from fabric_fenicsx.fem.tension_field import ForceFreeCurves, RelaxStats, relax_in_place
 from fabric_fenicsx.surrogate.kernels import yarn_stress as yarn_stress_kernel
 from fabric_fenicsx.surrogate.table import lambda_tangent, symmetric_eigmax
 
@@ -29,6 +29,8 @@ largest eigenvalue of the interpolated tangent is 1.028 of it at every state the
 reach, except on the jumps of the unit cell's compressive branch (10.4 x at alpha1 = 0.01,
 E2 = -0.054), where the slope is that of the interpolant across a jump, not a wave speed."""
 
+
+_NONE = np.zeros(0, np.int64)   # YarnStress.update: no point's damage changed
 
 _PATH_S, _PATH_W = np.polynomial.legendre.leggauss(6)
 _PATH_S, _PATH_W = 0.5 * (_PATH_S + 1.0), 0.5 * _PATH_W  # on [0, 1]: YarnStress.path_energy
@@ -75,7 +77,6 @@ class YarnStress:
         self.beta = float(beta)
         self.live = np.ones(n, dtype=bool)
         self._idx = np.arange(n)
-        self._sel = slice(None)
         self.E1, self.E2 = np.zeros(n), np.zeros(n)
         self.E1_prev, self.E2_prev = self.E1, self.E2
         self.lam = np.ones((2, n))
@@ -117,9 +118,9 @@ class YarnStress:
         tension-field strains (r1, r2)."""
         n = self.w.size
         R1, R2 = np.zeros(n), np.zeros(n)
-        R1[self._sel], R2[self._sel] = r1, r2
+        R1[self._idx], R2[self._idx] = r1, r2
         D1, D2 = self.damage_drive(R1, R2, self.live)
-        return D1[self._sel], D2[self._sel]
+        return D1[self._idx], D2[self._idx]
 
     # ------------------------------------------------------------------ surrogate access
     def _clip(self, E: np.ndarray) -> np.ndarray:
@@ -130,9 +131,12 @@ class YarnStress:
         compressive while the crossing yarn is stretched is taken at its force-free strain
         (tension field, :mod:`fabric_fenicsx.fem.tension_field`); every other strain as given.
         ``guess``: where the force-free searches start (the last step's relaxed strains)."""
-        c1, c2 = self._clip(E1), self._clip(E2)
-        r1, r2 = relaxed_strains(self.sur, c1, c2, a1, a2, self.relax_stats, guess, self.curves)
-        return np.where(r1 != c1, r1, E1), np.where(r2 != c2, r2, E2)
+        E1, E2 = np.ascontiguousarray(E1, dtype=float), np.ascontiguousarray(E2, dtype=float)
+        r = [np.empty(E1.size), np.empty(E1.size)]
+        yarn_stress_kernel.clip(E1, E2, self.E_lo, self.E_hi, *r)
+        relax_in_place(self.sur, r, a1, a2, self.relax_stats, guess, self.curves)
+        yarn_stress_kernel.keep_given(*r, E1, E2, self.E_lo, self.E_hi)
+        return r[0], r[1]
 
     def _intact(self, E1, E2, relaxed=None):
         """P1, P2 of intact yarns (alpha = 1: the surrogate's intact layer only), tension-only,
@@ -222,30 +226,32 @@ class YarnStress:
         Eq. 2-25), zero at the points of removed cells; the history advances to the new alpha.
         ``dt`` (s): the step that led to these strains, the viscous stress's rate (0: none)."""
         n = self.w.size
-        idx = self._idx
-        sel = self._sel   # the live points: a slice while none was removed (no gathers)
+        idx = self._idx   # the live points
+        m = idx.size
         a1h, a2h = self.alpha1, self.alpha2
-        e1, e2 = E1[sel], E2[sel]
-        self._keep_peak(sel, e1, e2)
-        changed = np.zeros(0, np.int64)
-        r1, r2 = self._relax(e1, e2, a1h[sel], a2h[sel], self.E_relaxed[:, sel])
-        self.E_relaxed[0, sel], self.E_relaxed[1, sel] = r1, r2
+        e1, e2, h1, h2, guess = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty((2, m))
+        E1, E2 = np.ascontiguousarray(E1, dtype=float), np.ascontiguousarray(E2, dtype=float)
+        yarn_stress_kernel.live_inputs(idx, E1, E2, a1h, a2h, self.E_relaxed, self.E_peak, e1, e2,
+                                       h1, h2, guess)
+        changed = _NONE
+        r1, r2 = self._relax(e1, e2, h1, h2, guess)
+        yarn_stress_kernel.put_live(idx, r1, r2, self.E_relaxed)
         if self.damage:
             laws = ({} if self.mu_crit is None or self.failure is not None else
-                    {"critical_stretch": self.mu_crit[:, sel], "softening_scale": self.scale[:, sel]})
+                    {"critical_stretch": self.mu_crit[:, idx], "softening_scale": self.scale[:, idx]})
             if self.failure is not None:   # the rule hands out the laws (the scatter's among them)
                 laws = self.failure.laws(idx)
-                p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
-                (b1, b2), redo = self.failure.admit(self.sur, idx, r1, r2, np.stack((a1h[sel], a2h[sel])),
+                p1, p2, b1, b2 = self.sur.update(r1, r2, h1, h2, **laws)
+                (b1, b2), redo = self.failure.admit(self.sur, idx, r1, r2, np.stack((h1, h2)),
                                                     np.stack((b1, b2)))
                 if redo.size:   # the stresses at the damage kept
                     p1, p2 = p1.copy(), p2.copy()
                     p1[redo], p2[redo], _, _ = self.sur.evaluate(r1[redo], r2[redo], b1[redo], b2[redo])
             elif self.damage_drive is None:
-                p1, p2, b1, b2 = self.sur.update(r1, r2, a1h[sel], a2h[sel], **laws)
+                p1, p2, b1, b2 = self.sur.update(r1, r2, h1, h2, **laws)
             else:   # the damage from the driving strains, the stresses from the point's own
                 d1, d2 = self._driving_strains(r1, r2)
-                _, _, b1, b2 = self.sur.update(d1, d2, a1h[sel], a2h[sel], **laws)
+                _, _, b1, b2 = self.sur.update(d1, d2, h1, h2, **laws)
                 p1, p2, _, _ = self.sur.evaluate(r1, r2, b1, b2)
             a1, a2, changed = np.empty(n), np.empty(n), np.empty(b1.size, np.int64)
             changed = changed[:yarn_stress_kernel.new_damage(a1h, a2h, self.live, b1, b2, a1, a2,
@@ -264,15 +270,15 @@ class YarnStress:
         # the cell together without bound; in biaxial compression the unit cell's branch has
         # jumps whose interpolant leaves small spurious tensions with huge slopes.
         beta_over_dt = self.beta / dt if self.beta > 0.0 and dt > 0.0 else 0.0
-        ref = self.P_el[:, sel]  # P(E^{n-1}, alpha^{n-1}); at the points whose alpha changed:
+        ref = self.P_el  # P(E^{n-1}, alpha^{n-1}); at the points whose alpha changed: alpha^n
         if beta_over_dt and changed.size:
             c = idx[changed]
             ref = ref.copy()
-            ref[:, changed] = self._frozen_P(self.E1[c], self.E2[c], a1[c], a2[c])  # alpha^n
-        P_el, P_v, lam = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
+            ref[:, c] = self._frozen_P(self.E1[c], self.E2[c], a1[c], a2[c])
+        P_el, P_v, lam, P = np.empty((2, n)), np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
         below, slack_tension, work = yarn_stress_kernel.stresses(
             E1, E2, self.live, p1, p2, ref, self.E_lo, beta_over_dt, self.w, self.lam, self.P_v,
-            P_el, P_v, lam)
+            P_el, P_v, lam, P)
         self.below_table += below
         self.slack_tension += slack_tension
         self.viscous_dissipation += work
@@ -280,15 +286,7 @@ class YarnStress:
         self.E1, self.E2 = E1.copy(), E2.copy()
         self.lam, self.P_el, self.P_v = lam, P_el, P_v
         self.alpha1, self.alpha2 = a1, a2
-        return P_el[0] + P_v[0], P_el[1] + P_v[1]
-
-    def _keep_peak(self, sel, e1, e2) -> None:
-        """Raise :attr:`E_peak` to the live points' strains ``e1``, ``e2`` (at ``sel``)."""
-        for row, e in zip(self.E_peak, (e1, e2)):
-            if isinstance(sel, slice):
-                np.maximum(row, e, out=row)
-            else:
-                row[sel] = np.maximum(row[sel], e)
+        return P[0], P[1]
 
     def tension(self) -> np.ndarray:
         """Yarn tensions P_i / lambda_i (N/m, shape (2, n)) at every owned point after the last
@@ -363,7 +361,6 @@ class YarnStress:
         self.erosion_energy += float(self.w[points] @ psi)
         self.live[points] = False
         self._idx = np.flatnonzero(self.live)
-        self._sel = self._idx
         self.P_el[:, points] = 0.0
         self.P_v[:, points] = 0.0
 
