@@ -546,14 +546,14 @@ class Surrogate:
         top = (self._mu_top["intact"], self._mu_top["damaged"]) if critical_stretch is not None else None
         P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol,
                                                                              band, mu_crit, top)
-        if np.any(status == damage_kernel.NON_FINITE):
+        if status.any() and np.any(status == damage_kernel.NON_FINITE):   # status 0: converged
             k = int(np.flatnonzero(status == damage_kernel.NON_FINITE)[0])
             raise SurrogateError(
                 f"surrogate table: a non-finite stretch in the table tile of E1 = {E1[k]!r}, "
                 f"E2 = {E2[k]!r} (alpha_hist = ({a1h[k]!r}, {a2h[k]!r})) stopped the damage "
                 f"iteration; the tile is corrupt: delete the cache folder {self.cache_dir} to "
                 f"rebuild it")
-        fallback = np.flatnonzero((status == BRACKETED) | (status == UNCONVERGED))
+        fallback = np.flatnonzero(((status == BRACKETED) | (status == UNCONVERGED)) if status.any() else ())
         if fallback.size:
             log = self.__dict__.setdefault("damage_fallbacks", FallbackLog())
             first_unconverged = log.unconverged == 0
