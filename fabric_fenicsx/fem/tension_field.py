@@ -61,6 +61,14 @@ def force_free_strain(surrogate, j, E_other, E_own, a1, a2, guess=None):
     table's top (``Surrogate.zero_force_strain``: Newton to 1e-15)."""
     root, status = surrogate.zero_force_strain(j + 1, E_other, E_own, np.zeros(E_own.size), a1, a2,
                                                guess)
+    _beyond_rest_length(surrogate, j, E_other, E_own, a1, a2, root, status)
+    return root, status
+
+
+def _beyond_rest_length(surrogate, j, E_other, E_own, a1, a2, root, status):
+    """:func:`force_free_strain`'s second search, in place: the points without a root up to the
+    rest length (status ROOT_NONE) searched in (0, E_hi]; root = E_own where there is none
+    there either. Returns those points' indices."""
     far = np.flatnonzero(status == ROOT_NONE)   # still compressive at the rest length
     if far.size:
         root[far], status[far] = surrogate.zero_force_strain(
@@ -68,7 +76,7 @@ def force_free_strain(surrogate, j, E_other, E_own, a1, a2, guess=None):
             a1[far], a2[far])
         none = far[status[far] == ROOT_NONE]
         root[none] = E_own[none]
-    return root, status
+    return far
 
 
 class ForceFreeCurves:
@@ -146,6 +154,13 @@ class ForceFreeCurves:
 _NO_GUESS = np.empty(0)   # curve_kernel.candidates: no start guess
 
 
+def _place(E_own, k, root, status):
+    """:func:`curve_kernel.place_roots` of a search's (root, status): E_own[k] = root, and the
+    numbers of roots found and of points without one."""
+    return curve_kernel.place_roots(E_own, k, np.asarray(root, dtype=float),
+                                    np.asarray(status, dtype=np.int8), ROOT_FOUND, ROOT_NONE)
+
+
 def relaxed_strains(surrogate, E1, E2, a1, a2, stats: RelaxStats | None = None, guess=None,
                     curves: ForceFreeCurves | None = None):
     """(E1r, E2r): the strains of a tension field (module docstring), vectorised.
@@ -169,36 +184,39 @@ def relax_in_place(surrogate, E, a1, a2, stats: RelaxStats | None = None, guess=
                    curves: ForceFreeCurves | None = None) -> None:
     """:func:`relaxed_strains` of the list E = [E1, E2] (float arrays, overwritten; the curves
     put new arrays in the list). Without curves the candidates are gathered and the roots put
-    back by compiled passes (:func:`curve_kernel.candidates`, :func:`curve_kernel.place_roots`)."""
-    n = E[0].size
-    if curves is None:
-        a1, a2 = np.ascontiguousarray(a1, dtype=float), np.ascontiguousarray(a2, dtype=float)
-        k, gathered = np.empty(n, np.int64), np.empty((5, n))
-    for j in (0, 1):
-        i = 1 - j
-        if curves is None:
-            start = _NO_GUESS if guess is None else np.ascontiguousarray(guess[j], dtype=float)
-            m = curve_kernel.candidates(E[j], E[i], a1, a2, start, k, *gathered)
-            if m == 0:
-                continue
-            other, own, b1, b2, g = gathered[:, :m]
-            root, status = force_free_strain(surrogate, j, other, own, b1, b2,
-                                             None if guess is None else g)
-            found, none = curve_kernel.place_roots(E[j], k[:m], np.asarray(root, dtype=float),
-                                                   np.asarray(status, dtype=np.int8), ROOT_FOUND,
-                                                   ROOT_NONE)
+    back by compiled passes (:func:`curve_kernel.candidates`, :func:`curve_kernel.place_roots`),
+    the search beyond the rest length made only when a point needs it."""
+    if curves is not None:
+        for j in (0, 1):
+            i = 1 - j
+            E[j], relaxed, k = curves.relax(j, E[j], E[i], a1, a2)
             if stats is not None:
-                stats.relaxed += found
-                stats.no_root += none
+                stats.relaxed += relaxed
+            if k.size == 0:
+                continue
+            root, status = force_free_strain(surrogate, j, E[i][k], E[j][k], a1[k], a2[k],
+                                             None if guess is None else guess[j][k])
+            E[j][k] = root
+            if stats is not None:
+                stats.relaxed += int(np.count_nonzero(status == ROOT_FOUND))
+                stats.no_root += int(np.count_nonzero(status == ROOT_NONE))
+        return
+    n = E[0].size
+    a1, a2 = np.ascontiguousarray(a1, dtype=float), np.ascontiguousarray(a2, dtype=float)
+    k, gathered = np.empty(n, np.int64), np.empty((5, n))
+    for j in (0, 1):
+        start = _NO_GUESS if guess is None else np.ascontiguousarray(guess[j], dtype=float)
+        m = curve_kernel.candidates(E[j], E[1 - j], a1, a2, start, k, *gathered)
+        if m == 0:
             continue
-        E[j], relaxed, k = curves.relax(j, E[j], E[i], a1, a2)
+        other, own, b1, b2, g = gathered[:, :m]
+        g = None if guess is None else g
+        root, status = surrogate.zero_force_strain(j + 1, other, own, np.zeros(m), b1, b2, g)
+        found, none = _place(E[j], k[:m], root, status)
+        if none:   # force_free_strain's second search, where it has one to make
+            far = _beyond_rest_length(surrogate, j, other, own, b1, b2, root, status)
+            more, none = _place(E[j], k[:m][far], root[far], status[far])
+            found += more
         if stats is not None:
-            stats.relaxed += relaxed
-        if k.size == 0:
-            continue
-        root, status = force_free_strain(surrogate, j, E[i][k], E[j][k], a1[k], a2[k],
-                                         None if guess is None else guess[j][k])
-        E[j][k] = root
-        if stats is not None:
-            stats.relaxed += int(np.count_nonzero(status == ROOT_FOUND))
-            stats.no_root += int(np.count_nonzero(status == ROOT_NONE))
+            stats.relaxed += found
+            stats.no_root += none
