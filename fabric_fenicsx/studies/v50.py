@@ -27,7 +27,9 @@ again over them: a complete run stored in a batch's folder is taken at its own v
 """
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -81,9 +83,6 @@ def stored_velocities(scene: str, overrides, out_dir, start: int, stop: int, fir
     run_<start + 1>, ... (up to run_<stop - 1>) for this estimate, until the first folder without
     one: a run is taken when :func:`member_run` at its stored velocity has exactly its settings
     and model version (:func:`~fabric_fenicsx.studies.runpool.stored_summary`)."""
-    import json
-    from pathlib import Path
-
     from fabric_fenicsx.studies.runpool import stored_summary
 
     found = []
@@ -317,9 +316,6 @@ def write_report(out, rows: list[dict], stop: str, scene_name: str, extra: dict,
     """v50.csv, v50.json (:func:`report` updated with ``extra``; with ``with_rows`` also the rows)
     and v50.png of the same ``rows`` into the folder ``out``, so that the three always describe
     the same runs (also when an estimate stops early); returns the report."""
-    import json
-    from pathlib import Path
-
     from fabric_fenicsx.studies.runpool import write_atomic
 
     out = Path(out)
