@@ -1,12 +1,13 @@
-"""The tear test's report: a row per mesh (tear.csv), the families compared at each size
-(tear.json, printed), and the tear paths side by side (tear.png)."""
+"""The tear test's report: a row per pull (tear.csv), the families compared at each size
+(tear.json, printed: the panels without scatter, and the means over the strength-scatter
+members), and the tear paths side by side (tear.png)."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-__all__ = ["COLUMNS", "compare_families", "format_report", "plot_paths"]
+__all__ = ["COLUMNS", "MEMBER_MEASURES", "compare_families", "compare_members", "format_members", "format_report", "plot_paths"]
 
 COLUMNS = ("family", "h", "seed", "n_cells", "notch", "tear_load", "peak_force", "work_per_length",
            "tear_length", "path_angle", "path_deviation", "path_spread", "n_tear_cells", "deleted",
@@ -40,6 +41,80 @@ def compare_families(rows: list[dict]) -> dict:
         entry["paths_along_yarns"] = bool(dev) and max(dev) <= 10.0
         out[f"{h * 1e3:g} mm"] = entry
     return out
+
+
+MEMBER_MEASURES = ("tear_load", "peak_force", "work_per_length", "path_deviation")
+"""The measures :func:`compare_members` averages over a family's strength-scatter members."""
+
+
+def compare_members(rows: list[dict]) -> dict:
+    """Per cell size, over the strength-scatter members (seed >= 0) of every family: each family's
+    mean of each of :data:`MEMBER_MEASURES` with its 95 % interval
+    (:func:`~fabric_fenicsx.studies.means.mean_of`) and its share of panels torn through; the
+    relative spread (max - min) / mean of the families' means and whether it is within
+    :data:`AGREEMENT`; and, since a seed is the same fabric on every mesh (the scatter is a field
+    of the material, read by each mesh's cells), the paired differences of the tear load and the
+    work per length between each two families with their 95 % intervals. Empty where no size has
+    members."""
+    from fabric_fenicsx.studies.means import mean_of
+
+    out = {}
+    for h in sorted({r["h"] for r in rows}):
+        at = [r for r in rows if r["h"] == h and int(r["seed"]) >= 0]
+        families = list(dict.fromkeys(r["family"] for r in at))
+        if not families:
+            continue
+        entry = {"families": {}, "paired": {}}
+        for f in families:
+            mine = [r for r in at if r["family"] == f]
+            stats = {"n": len(mine), "torn_through": sum(r["end"].startswith("torn through") for r in mine) / len(mine)}
+            for key in MEMBER_MEASURES:
+                m = mean_of(r[key] for r in mine if math.isfinite(r[key]))
+                stats[key] = None if m is None else {"mean": m.mean, "ci95": m.half_width, "n": m.n}
+            entry["families"][f] = stats
+        for key in ("tear_load", "peak_force", "work_per_length"):
+            means = [s[key]["mean"] for s in entry["families"].values() if s[key] is not None]
+            spread = _spread(means)
+            entry[f"{key}_spread"] = spread
+            entry[f"{key}_agrees"] = bool(spread <= AGREEMENT) if math.isfinite(spread) else None
+        dev = [s["path_deviation"]["mean"] for s in entry["families"].values() if s["path_deviation"] is not None]
+        entry["largest_mean_path_deviation"] = max(dev) if dev else math.nan
+        by_seed = {(r["family"], int(r["seed"])): r for r in at}
+        for i, a in enumerate(families):
+            for b in families[i + 1:]:
+                seeds = sorted(s for f, s in by_seed if f == a and (b, s) in by_seed)
+                pair = {}
+                for key in ("tear_load", "work_per_length"):
+                    d = mean_of(by_seed[(a, s)][key] - by_seed[(b, s)][key] for s in seeds
+                                if math.isfinite(by_seed[(a, s)][key] - by_seed[(b, s)][key]))
+                    pair[key] = None if d is None else {"mean": d.mean, "ci95": d.half_width, "n": d.n}
+                entry["paired"][f"{a} - {b}"] = pair
+        out[f"{h * 1e3:g} mm"] = entry
+    return out
+
+
+def _mean_text(m: dict | None, digits: int) -> str:
+    if m is None:
+        return "-"
+    return f"{m['mean']:.{digits}f}" + (f" +- {m['ci95']:.{digits}f}" if m["ci95"] is not None else "")
+
+
+def format_members(comparison: dict) -> str:
+    """The members' means per size and family, then their spread and the paired differences."""
+    lines = []
+    for size, c in comparison.items():
+        lines.append(f"{size}, strength-scatter members (means with 95 % intervals):")
+        for f, s in c["families"].items():
+            lines.append(f"  {f:<16} n {s['n']:>3}  tear load {_mean_text(s['tear_load'], 0)} N, peak "
+                         f"{_mean_text(s['peak_force'], 0)} N, work {_mean_text(s['work_per_length'], 2)} J/m, off "
+                         f"yarn {_mean_text(s['path_deviation'], 1)} deg, torn through {s['torn_through']:.0%}")
+        lines.append(f"  spread of the means: tear load {c['tear_load_spread']:.1%}, peak {c['peak_force_spread']:.1%}, "
+                     f"work per length {c['work_per_length_spread']:.1%} (agree within {AGREEMENT:.0%}: "
+                     f"{c['tear_load_agrees']}, {c['peak_force_agrees']}, {c['work_per_length_agrees']})")
+        for pair, d in c["paired"].items():
+            lines.append(f"  paired {pair}: tear load {_mean_text(d['tear_load'], 0)} N, work "
+                         f"{_mean_text(d['work_per_length'], 2)} J/m")
+    return "\n".join(lines)
 
 
 def format_report(rows: list[dict], comparison: dict) -> str:

@@ -171,3 +171,30 @@ def test_the_command_writes_its_report_and_refuses_bad_input(tmp_path):
     bad_rule = subprocess.run([*cmd, "--failure", "yarn_average", "--out", str(tmp_path / "rule")],
                               capture_output=True, text=True, timeout=300)
     assert bad_rule.returncode == 2 and "failure_length" in bad_rule.stderr
+
+
+def test_the_members_are_compared_as_means_and_paired_by_seed():
+    from fabric_fenicsx.studies.tear_report import compare_members, format_members
+
+    def row(family, seed, load, work, end="torn through"):
+        return {"family": family, "h": 0.002, "seed": seed, "tear_load": load, "peak_force": load + 10.0,
+                "work_per_length": work, "path_deviation": 1.0, "end": end}
+
+    # the same three fabrics on two meshes: b tears at 100 N more on every seed
+    rows = [row("a", -1, 9999.0, 99.0)]
+    rows += [row("a", s, 3000.0 + 50 * s, 3.0 + 0.1 * s) for s in range(3)]
+    rows += [row("b", s, 3100.0 + 50 * s, 3.0 + 0.1 * s, "force fell below a tenth of its peak" if s == 2 else
+                 "torn through") for s in range(3)]
+    c = compare_members(rows)["2 mm"]
+    a, b = c["families"]["a"], c["families"]["b"]
+    assert a["n"] == b["n"] == 3                                 # the panel without scatter is not a member
+    assert a["tear_load"]["mean"] == pytest.approx(3050.0) and b["tear_load"]["mean"] == pytest.approx(3150.0)
+    assert a["tear_load"]["ci95"] > 0
+    assert a["torn_through"] == 1.0 and b["torn_through"] == pytest.approx(2 / 3)
+    assert c["tear_load_spread"] == pytest.approx(100.0 / 3100.0)
+    assert c["tear_load_agrees"] is True
+    paired = c["paired"]["a - b"]
+    assert paired["tear_load"]["mean"] == pytest.approx(-100.0) and paired["tear_load"]["ci95"] == pytest.approx(0.0)
+    assert paired["work_per_length"]["mean"] == pytest.approx(0.0)
+    assert "paired a - b" in format_members({"2 mm": c})
+    assert compare_members([row("a", -1, 1.0, 1.0)]) == {}
