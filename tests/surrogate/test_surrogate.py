@@ -359,3 +359,28 @@ def test_compiled_damage_laws_match_the_fibril_module(law):
     for s in (1.0, 0.7, 0.3):
         compiled = np.array([band_alpha(m, mu_crit, s, law_arguments(law)) for m in mu])
         np.testing.assert_allclose(compiled, crack_band_alpha(law, mu, mu_crit, s), rtol=0, atol=1e-14)
+
+
+def test_only_points_that_iterated_have_a_status(sur):
+    """Surrogate.update looks at the damage statuses (non-finite, fallbacks) only when a point
+    iterated: the kernel gives every other point status 0 (converged). Over random states, intact
+    and damaging, below and beyond the onset, the statuses that are not 0 are at most as many as
+    the points that iterated, and all 0 where none did."""
+    rng = np.random.default_rng(21)
+    states = [_damaging_states(400, 22)]
+    for n in (1, 50, 2000):
+        E1, E2 = rng.uniform(-0.02, 0.07, n), rng.uniform(-0.02, 0.05, n)
+        E1[rng.random(n) < 0.05], E2[rng.random(n) < 0.05] = 0.0, -0.0
+        hist = np.where(rng.random((n, 2)) < 0.6, 1.0, rng.uniform(0.0, 1.0, (n, 2)))
+        states.append((E1, E2, hist))
+    iterated_somewhere = False
+    for E1, E2, hist in states:
+        n = E1.size
+        band, mu_crit = np.ones((n, 2)), np.empty((n, 2))
+        mu_crit[:] = sur.mu_crit
+        assert np.array_equal(sur.mu_crit[None].repeat(n, axis=0), mu_crit)   # update's copy
+        *_, status, iterated = sur._update_points(E1, E2, hist[:, 0].copy(), hist[:, 1].copy(),
+                                                  1e-10, band, mu_crit)
+        assert np.count_nonzero(status) <= iterated
+        iterated_somewhere |= iterated > 0
+    assert iterated_somewhere
