@@ -328,7 +328,8 @@ class CentralDifference:
         self.energy = EnergyRecord(self.time, float(total[5]), *map(float, self._works))
 
         _leapfrog(self.v, self.u, self._du, acc, 0.5 * (self._dt_prev + dt), dt)
-        m.u.x.scatter_forward()
+        if m.parallel:
+            m.u.x.scatter_forward()
 
         spare["f_int"], spare["f_ext"], spare["f_damp"] = self._f_int, self._f_ext, self._f_damp
         self._f_int, self._f_ext, self._f_damp = f_int, f_ext, f_damp

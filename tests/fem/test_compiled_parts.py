@@ -194,3 +194,23 @@ def test_central_difference_update_equals_the_numpy_formulas():
         np.testing.assert_allclose(cd.u, u, rtol=1e-13, atol=1e-18)
         np.testing.assert_allclose(cd.v, v, rtol=1e-12, atol=1e-15)
     assert works[0] != 0 and works[2] != 0
+
+
+def test_one_rank_skips_only_scatters_that_change_nothing():
+    """On one rank there are no ghosts: the steps without the scatters and the ghost update
+    (``Membrane.parallel`` False) give the bits of the steps with them."""
+    if MPI.COMM_WORLD.size > 1:
+        pytest.skip("the skip is for one rank")
+    runs = []
+    for parallel in (True, False):
+        m = membrane("quadrilateral", 0.3, 1, distort=0.1)
+        m.add_term(HourglassControl(0.05, 1e5))
+        assert m.parallel is False and m.V.dofmap.index_map.num_ghosts == 0
+        m.parallel = parallel
+        cd = CentralDifference(m, LinearYarnMaterial(1e5, 8e4), 0.2, np.array([0, 1, 2]), damping=1e-6)
+        f_ext = np.random.default_rng(6).normal(0, 1e-3, m.n_owned_dofs)
+        records = [cd.step(dt, f_ext) for dt in (2e-6, 1.5e-6, 1e-6)]
+        runs.append((cd.u.copy(), cd.v.copy(), m.internal_force(), records))
+    (u, v, f, rec), (u2, v2, f2, rec2) = runs
+    assert np.abs(f).max() > 0 and np.array_equal(u, u2) and np.array_equal(v, v2)
+    assert np.array_equal(f, f2) and rec == rec2
