@@ -42,6 +42,7 @@ KERNELS = [
     (interp_kernel, "lookup", "surrogate look-up"),
     (interp_kernel, "lookup_derivatives", "surrogate look-up with slopes (dt checks)"),
     (interp_kernel, "prepare_inputs", "surrogate input checks"),
+    (interp_kernel, "record_inputs", "surrogate range statistics"),
     (damage_kernel, "update", "damage update (look-up, Eq. 2-25 iteration)"),
     (yarn_stress_kernel, "stresses", "yarn stresses, slack rule, viscous stress"),
     (yarn_stress_kernel, "new_damage", "damage history"),

@@ -390,9 +390,7 @@ class Surrogate:
             self._reject(E1, E2, a1, a2, names)
         st = self.stats
         st.points += E1.size
-        st.E_min, st.E_max = np.minimum(st.E_min, ranges[0]), np.maximum(st.E_max, ranges[1])
-        st.beyond_failure += counts[:2]
-        st.compression += counts[2:4]
+        interp_kernel.record_inputs(counts, ranges, st.beyond_failure, st.compression, st.E_min, st.E_max)
         return E[0], E[1], alpha[0], alpha[1], arrays[0].shape
 
     @staticmethod

@@ -384,3 +384,23 @@ def test_only_points_that_iterated_have_a_status(sur):
         assert np.count_nonzero(status) <= iterated
         iterated_somewhere |= iterated > 0
     assert iterated_somewhere
+
+
+def test_range_statistics_pass_equals_numpy():
+    """interp_kernel.record_inputs (the range statistics of Surrogate._inputs, in place) against
+    the numpy expressions it replaces, bit for bit: counts added, the range widened by
+    numpy.minimum / numpy.maximum, with NaN, infinities and zeros of both signs."""
+    from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
+
+    rng = np.random.default_rng(41)
+    values = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 0.01, -0.02, 0.03])
+    for _ in range(3000):
+        E_min, E_max = rng.choice(values, 2), rng.choice(values, 2)
+        ranges = rng.choice(values, (2, 2))
+        counts = rng.integers(0, 50, 5)
+        beyond, compression = rng.integers(0, 9, 2), rng.integers(0, 9, 2)
+        expected = (beyond + counts[:2], compression + counts[2:4], np.minimum(E_min, ranges[0]),
+                    np.maximum(E_max, ranges[1]))
+        interp_kernel.record_inputs(counts, ranges, beyond, compression, E_min, E_max)
+        for got, want in zip((beyond, compression, E_min, E_max), expected):
+            assert got.dtype == want.dtype and got.tobytes() == want.tobytes()

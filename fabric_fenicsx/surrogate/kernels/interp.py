@@ -310,3 +310,17 @@ def prepare_inputs(E1, E2, a1, a2, E_fail, E_lo, E_hi, E, alpha, counts, ranges)
                 counts[2 + i] += 1
             E[i, n] = min(max(e[i], E_lo), E_hi)
     ranges[0, 0], ranges[0, 1], ranges[1, 0], ranges[1, 1] = lo1, lo2, hi1, hi2
+
+
+@njit(cache=True, nogil=True)
+def record_inputs(counts, ranges, beyond_failure, compression, E_min, E_max):
+    """A :func:`prepare_inputs` pass's ``counts`` and strain ``ranges`` into the surrogate's range
+    statistics, in place: the points beyond failure and below the table added per yarn, the range
+    seen widened as numpy.minimum / numpy.maximum do it (NaN if either is, the second of two
+    equal values)."""
+    for i in range(2):
+        beyond_failure[i] += counts[i]
+        compression[i] += counts[2 + i]
+        lo, hi = E_min[i], E_max[i]
+        E_min[i] = lo if (lo < ranges[0, i] or lo != lo) else ranges[0, i]
+        E_max[i] = hi if (hi > ranges[1, i] or hi != hi) else ranges[1, i]
