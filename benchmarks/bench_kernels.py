@@ -68,6 +68,7 @@ KERNELS = [
     (projectile, "_all_finite_positive", "contact: finite positive masses"),
     (simulation, "count_touching", "contact: touching attached nodes"),
     (removal, "_node_extremes", "end tests: node pass"),
+    (simulation, "least", "smallest integrities (reductions)"),
     (removal, "_select", "removal: cells to delete or erode"),
     (removal, "_attach", "removal: fabric still attached to a clamp"),
 ]

@@ -214,3 +214,22 @@ def test_one_rank_skips_only_scatters_that_change_nothing():
     (u, v, f, rec), (u2, v2, f2, rec2) = runs
     assert np.abs(f).max() > 0 and np.array_equal(u, u2) and np.array_equal(v, v2)
     assert np.array_equal(f, f2) and rec == rec2
+
+
+def test_least_integrity_equals_numpy_min():
+    """The step's smallest integrities (impact.ledger.least) against numpy's min with an initial
+    value: the same value, NaN where one is; the yarn damage 1 - min the same bits (of two equal
+    zeros either may be numpy's result, and 1 - 0 is 1 for both)."""
+    from fabric_fenicsx.impact.ledger import least
+
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 5, 64, 6000):
+        for special in (None, 0.0, -0.0, np.nan, 1.0, 1.5, 1e-300):
+            a = np.where(rng.random(n) < 0.7, 1.0, rng.uniform(0.0, 1.0, n))
+            if special is not None and n:
+                a[rng.random(n) < 0.05] = special
+            for view in (a, a[::3]):
+                got, want = least(view, 1.0), view.min(initial=1.0)
+                assert (got == want) or (np.isnan(got) and np.isnan(want))
+                x, y = 1.0 - float(got), 1.0 - float(want)
+                assert np.float64(x).tobytes() == np.float64(y).tobytes() or (np.isnan(x) and np.isnan(y))
