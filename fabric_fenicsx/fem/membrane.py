@@ -308,7 +308,7 @@ class Membrane:
         (ADD/REVERSE). Written into ``out`` (owned dofs) if given, else into a new array."""
         for term in self.terms:
             term.prepare(self)
-        key = tuple(id(t) for t in self.terms)
+        key = tuple(map(id, self.terms))
         if self._form is None or key != self._form_key:
             self._form = [fem.form(part, jit_params=dict(self.jit_params)) for part in self._weak_form_parts()]
             self._packers = [CoefficientPacker(form) for form in self._form]

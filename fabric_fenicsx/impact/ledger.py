@@ -31,8 +31,11 @@ def least(a, initial):
 
 
 def reduce_named(comm, values: dict[str, float], op=MPI.SUM) -> dict[str, float]:
-    """The named values reduced over all ranks with ``op`` (one Allreduce, in the dict's order)."""
+    """The named values reduced over all ranks with ``op`` (one Allreduce, in the dict's order;
+    on one rank the values themselves, as floats)."""
     local = np.array(list(values.values()), dtype=float)
+    if comm.size == 1:
+        return dict(zip(values, local))
     total = np.empty_like(local)
     comm.Allreduce(local, total, op=op)
     return dict(zip(values, total))

@@ -197,8 +197,8 @@ def test_central_difference_update_equals_the_numpy_formulas():
 
 
 def test_one_rank_skips_only_scatters_that_change_nothing():
-    """On one rank there are no ghosts: the steps without the scatters and the ghost update
-    (``Membrane.parallel`` False) give the bits of the steps with them."""
+    """On one rank there are no ghosts: the steps without the scatters, the ghost update and the
+    energies' Allreduce (``Membrane.parallel`` False) give the bits of the steps with them."""
     if MPI.COMM_WORLD.size > 1:
         pytest.skip("the skip is for one rank")
     runs = []
@@ -233,3 +233,21 @@ def test_least_integrity_equals_numpy_min():
                 assert (got == want) or (np.isnan(got) and np.isnan(want))
                 x, y = 1.0 - float(got), 1.0 - float(want)
                 assert np.float64(x).tobytes() == np.float64(y).tobytes() or (np.isnan(x) and np.isnan(y))
+
+
+def test_one_rank_reduction_equals_the_allreduce():
+    """reduce_named on one rank returns the values as MPI's sum and max over that rank would."""
+    from fabric_fenicsx.impact.ledger import reduce_named
+
+    comm = MPI.COMM_WORLD
+    if comm.size > 1:
+        pytest.skip("the shortcut is for one rank")
+    values = {"a": 1.5, "b": -0.0, "c": 3, "d": np.float64(np.nan), "e": np.inf, "f": 1e-310}
+    for op in (MPI.SUM, MPI.MAX):
+        local = np.array(list(values.values()), dtype=float)
+        total = np.empty_like(local)
+        comm.Allreduce(local, total, op=op)
+        got = reduce_named(comm, values, op=op)
+        assert list(got) == list(values)
+        assert all(type(x) is type(y) and np.float64(x).tobytes() == np.float64(y).tobytes()
+                   for x, y in zip(got.values(), total))
