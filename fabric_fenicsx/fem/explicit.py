@@ -39,6 +39,7 @@ step dt_{n-1/2} (s) that led to u^n.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -274,7 +275,7 @@ class CentralDifference:
     def step(self, dt: float, f_ext: np.ndarray | None = None) -> EnergyRecord:
         """Advance u from t_n to t_n + dt under the external nodal forces f_ext (N, owned dofs,
         at t_n; None for no load).  Returns the energies at t_n."""
-        if not np.isfinite(dt) or dt <= 0:
+        if not math.isfinite(dt) or dt <= 0:
             raise ValueError(f"dt must be a finite positive time step in s, got {dt!r}")
         m = self.membrane
         n = m.n_owned_dofs
@@ -315,8 +316,11 @@ class CentralDifference:
             local[4] = 0.5 * np.dot(f_diss + self._f_diss, self._du)
         local[6] = float(_sum(E1) + _sum(E2) + _sum(P1) + _sum(P2))
         total = self._total
-        m.comm.Allreduce(local, total, op=MPI.SUM)
-        if not np.isfinite(total).all():
+        if m.parallel:
+            m.comm.Allreduce(local, total, op=MPI.SUM)
+        else:   # the sum over one rank is its own values
+            total[:] = local
+        if not all(map(math.isfinite, total)):
             raise FloatingPointError(
                 f"explicit step {self.n_steps} at t = {self.time:.6e} s produced non-finite values "
                 f"(work increments, kinetic energy, strain/stress sums = {total}); "
@@ -325,10 +329,11 @@ class CentralDifference:
                 f"fabric_fenicsx.fem.timestep.stable_dt). Lower the safety factor or check the "
                 f"material response for these strains.")
         self._works += total[:5]
-        self.energy = EnergyRecord(self.time, float(total[5]), *map(float, self._works))
+        self.energy = EnergyRecord(self.time, float(total[5]), *self._works.tolist())
 
         _leapfrog(self.v, self.u, self._du, acc, 0.5 * (self._dt_prev + dt), dt)
-        m.u.x.scatter_forward()
+        if m.parallel:
+            m.u.x.scatter_forward()
 
         spare["f_int"], spare["f_ext"], spare["f_damp"] = self._f_int, self._f_ext, self._f_damp
         self._f_int, self._f_ext, self._f_damp = f_int, f_ext, f_damp

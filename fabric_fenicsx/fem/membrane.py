@@ -71,6 +71,9 @@ class Membrane:
             add one with :meth:`add_term`.
         live: DG0 live-cell mask (1 live, 0 removed) that multiplies every term.
         quadrature_weights_detJ: reference area dA (m^2) of every owned quadrature point.
+        parallel: more than one rank, so there are ghost values to share. On one rank there are
+            none, and the scatters and ghost updates of a step, which change nothing there, are
+            skipped.
 
     The term context: a term's :meth:`~fabric_fenicsx.fem.terms.MembraneTerm.integrand` receives
     the membrane and may use ``u``, ``v``, ``F``, ``L1``, ``L2``, ``a1``, ``a2``, ``lambda1``,
@@ -93,6 +96,7 @@ class Membrane:
         q = int(quadrature_degree)
         self.msh = msh
         self.comm = msh.comm
+        self.parallel = self.comm.size > 1
         self.angle = float(angle)
         self.quadrature_degree = q
         self.jit_params = dict(jit_params or {})
@@ -272,7 +276,8 @@ class Membrane:
                 f.x.array[:self.n_points] = P
             else:
                 f.x.array[self._qdofs] = P
-            f.x.scatter_forward()
+            if self.parallel:
+                f.x.scatter_forward()
 
     def integrate(self, density: np.ndarray) -> float:
         """Global integral over the reference area of a point field (e.g. an energy density
@@ -303,7 +308,7 @@ class Membrane:
         (ADD/REVERSE). Written into ``out`` (owned dofs) if given, else into a new array."""
         for term in self.terms:
             term.prepare(self)
-        key = tuple(id(t) for t in self.terms)
+        key = tuple(map(id, self.terms))
         if self._form is None or key != self._form_key:
             self._form = [fem.form(part, jit_params=dict(self.jit_params)) for part in self._weak_form_parts()]
             self._packers = [CoefficientPacker(form) for form in self._form]
@@ -351,7 +356,8 @@ class Membrane:
                 fem.assemble_vector(local, form, coeffs=packer.pack())     # adds into b
             for term in per_cell_terms:
                 term.add_cell_forces(self, local.reshape(-1, 3))
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        if self.parallel:
+            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
 
     def _weak_form_parts(self) -> list:
         """:meth:`weak_form` split into one form per quadrature rule: DOLFINx 0.5.2 assembles

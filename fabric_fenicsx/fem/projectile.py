@@ -79,11 +79,29 @@ def _positive(name: str, value: float) -> float:
     return value
 
 
+@njit(cache=True, nogil=True)
+def _all_finite(a):
+    """numpy.isfinite(a).all() (compiled: the contact checks its points at every step)."""
+    for value in a.flat:
+        if not math.isfinite(value):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _all_finite_positive(a):
+    """(numpy.isfinite(a) & (a > 0.0)).all() (compiled, as :func:`_all_finite`)."""
+    for value in a.flat:
+        if not (math.isfinite(value) and value > 0.0):
+            return False
+    return True
+
+
 def _points(name: str, x: Any) -> np.ndarray:
     arr = np.asarray(x, dtype=float)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f"{name} must have shape (n, 3), got {arr.shape}")
-    if not np.isfinite(arr).all():
+    if not _all_finite(arr):
         bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
         raise ValueError(f"{name} has non-finite entries, first at row {bad}: {arr[bad]}")
     return arr
@@ -95,36 +113,66 @@ def _per_node(name: str, value: Any, n: int) -> np.ndarray:
         raise ValueError(f"{name} must be a scalar or have shape ({n},), got {arr.shape}")
     if arr.ndim == 0:
         arr = np.broadcast_to(arr, (n,))
-    if not (np.isfinite(arr) & (arr > 0.0)).all():
+    if not _all_finite_positive(arr):
         bad = int(np.flatnonzero(~(np.isfinite(arr) & (arr > 0.0)))[0])
         raise ValueError(f"{name} must be finite and > 0, got {arr[bad]!r} at node {bad}")
     return arr
+
+
+@njit(cache=True, nogil=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+def _gap_and_normal_at(x, y, z, z_face, R, half, fillet, ax, ay):
+    """:meth:`Projectile.gap_and_normal` of the point (x, y, z): (gap, n_x, n_y, n_z) (only
+    compiled code calls it: no Python entry point to compile)."""
+    dx, dy = x - ax, y - ay
+    r = math.hypot(dx, dy)
+    hm = z - z_face - half  # height above the mid-plane of the solid
+    front = hm < 0.0
+    rr = fillet if front else 0.0  # only the impacting edge is filleted
+    qx = r - R + rr
+    qy = abs(hm) - half + rr
+    mx, my = max(qx, 0.0), max(qy, 0.0)
+    mlen = math.hypot(mx, my)
+    if mlen > 0.0:  # outside
+        gap = mlen - rr
+        gx, gy = mx / mlen, my / mlen
+    else:
+        gap = max(qx, qy) - rr
+        # inside: nearer the side than the face; ties (to round-off) go to the face
+        side_in = qx > qy + 1e-12 * (R + half)
+        gx, gy = (1.0, 0.0) if side_in else (0.0, 1.0)
+    er_x, er_y = (1.0, 0.0) if r == 0.0 else (dx / r, dy / r)
+    return gap, gx * er_x, gx * er_y, (-gy if front else gy)
 
 
 @njit(cache=True, nogil=True)
 def _gap_and_normal(x, z_face, R, half, fillet, ax, ay, gap, normal):
     """:meth:`Projectile.gap_and_normal` per point (compiled: it runs at every step)."""
     for p in range(x.shape[0]):
-        dx, dy = x[p, 0] - ax, x[p, 1] - ay
-        r = math.hypot(dx, dy)
-        hm = x[p, 2] - z_face - half  # height above the mid-plane of the solid
-        front = hm < 0.0
-        rr = fillet if front else 0.0  # only the impacting edge is filleted
-        qx = r - R + rr
-        qy = abs(hm) - half + rr
-        mx, my = max(qx, 0.0), max(qy, 0.0)
-        mlen = math.hypot(mx, my)
-        if mlen > 0.0:  # outside
-            gap[p] = mlen - rr
-            gx, gy = mx / mlen, my / mlen
-        else:
-            gap[p] = max(qx, qy) - rr
-            # inside: nearer the side than the face; ties (to round-off) go to the face
-            side_in = qx > qy + 1e-12 * (R + half)
-            gx, gy = (1.0, 0.0) if side_in else (0.0, 1.0)
-        er_x, er_y = (1.0, 0.0) if r == 0.0 else (dx / r, dy / r)
-        normal[p, 0], normal[p, 1] = gx * er_x, gx * er_y
-        normal[p, 2] = -gy if front else gy
+        gap[p], normal[p, 0], normal[p, 1], normal[p, 2] = _gap_and_normal_at(
+            x[p, 0], x[p, 1], x[p, 2], z_face, R, half, fillet, ax, ay)
+
+
+@njit(cache=True, nogil=True)
+def _inside(x, z_face, length, R, half, fillet, ax, ay, r2, idx, pen, normal):
+    """The points of ``x`` inside the solid in one pass, as ``PenaltyContact.forces`` found them
+    by numpy selections: those inside the bounding cylinder (:func:`_in_cylinder`, bounds z_face
+    and z_face + length) whose gap (:func:`_gap_and_normal_at`) is < 0, in order, their indices
+    into ``idx``, penetrations -gap into ``pen`` and normals into ``normal`` (rows). Returns
+    their number and the largest penetration (-inf if none)."""
+    m = 0
+    deepest = -math.inf
+    z_hi = z_face + length
+    for p in range(x.shape[0]):
+        dx, dy, z = x[p, 0] - ax, x[p, 1] - ay, x[p, 2]
+        if not ((z > z_face) & (z < z_hi) & (dx * dx + dy * dy < r2)):
+            continue
+        gap, n0, n1, n2 = _gap_and_normal_at(x[p, 0], x[p, 1], z, z_face, R, half, fillet, ax, ay)
+        if gap < 0.0:
+            idx[m], pen[m] = p, -gap
+            normal[m, 0], normal[m, 1], normal[m, 2] = n0, n1, n2
+            deepest = max(deepest, -gap)
+            m += 1
+    return m, deepest
 
 
 @njit(cache=True, nogil=True)
@@ -455,11 +503,12 @@ class PenaltyContact:
 
         proj = self.projectile
         f_nodes = np.zeros((n, 3))
-        idx = np.flatnonzero(proj.candidates(x, state.z))
-        if idx.size:
-            gap, nrm = proj._distance(x[idx], state.z)   # x checked above
-            inside = gap < 0.0
-            idx, pen, nrm = idx[inside], -gap[inside], nrm[inside]
+        zf = proj._z_face(state.z)
+        idx, pen, nrm = np.empty(n, np.int64), np.empty(n), np.empty((n, 3))
+        n_in, pen_max = _inside(np.ascontiguousarray(x), zf, proj.length, proj.radius, 0.5 * proj.length,
+                                proj.fillet, proj.axis_xy[0], proj.axis_xy[1], proj.radius**2, idx, pen,
+                                nrm)
+        idx, pen, nrm = idx[:n_in], pen[:n_in], nrm[:n_in]
         if idx.size == 0:
             return f_nodes, np.zeros(3), dict(
                 penalty_energy=0.0, friction_work=0.0, damping_work=0.0, n_active=0,
@@ -468,7 +517,6 @@ class PenaltyContact:
             )
 
         limit = _MAX_PENETRATION_FRACTION * min(proj.radius, 0.5 * proj.length)
-        pen_max = pen.max()
         if pen_max > limit:
             i = int(np.argmax(pen))
             raise RuntimeError(

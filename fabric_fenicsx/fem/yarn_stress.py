@@ -293,7 +293,9 @@ class YarnStress:
         :meth:`update`, elastic part (zero at removed points and slack yarns): the geometric
         stiffness of each yarn against a transverse perturbation (zero where a yarn has no
         length left: a slack, collapsed yarn carries nothing)."""
-        return np.divide(self.P_el, self.lam, out=np.zeros_like(self.P_el), where=self.lam > 0.0)
+        T = np.empty(self.P_el.shape)
+        yarn_stress_kernel.tension(self.P_el, self.lam, T)
+        return T
 
     def wave_modulus(self, lookahead: float = 0.0) -> float:
         """Largest wave modulus (N/m) over this rank's live points: the largest eigenvalue of

@@ -11,13 +11,31 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
+from numba import njit
 
-__all__ = ["EnergyLedger", "reduce_named"]
+__all__ = ["EnergyLedger", "reduce_named", "least"]
+
+
+@njit(cache=True, nogil=True)
+def least(a, initial):
+    """a.min(initial=initial) of a 1-D array (NaN if one is), compiled: the step's smallest
+    integrities without numpy's dispatch. Of two equal values either may be the result (numpy's
+    order of reduction decides which zero it gives)."""
+    smallest = initial
+    for value in a:
+        if value != value:
+            return value
+        if value < smallest:
+            smallest = value
+    return smallest
 
 
 def reduce_named(comm, values: dict[str, float], op=MPI.SUM) -> dict[str, float]:
-    """The named values reduced over all ranks with ``op`` (one Allreduce, in the dict's order)."""
+    """The named values reduced over all ranks with ``op`` (one Allreduce, in the dict's order;
+    on one rank the values themselves, as floats)."""
     local = np.array(list(values.values()), dtype=float)
+    if comm.size == 1:
+        return dict(zip(values, local))
     total = np.empty_like(local)
     comm.Allreduce(local, total, op=op)
     return dict(zip(values, total))

@@ -29,7 +29,7 @@ from fabric_fenicsx.fem.mesh import edge_dofs, min_cell_size
 from fabric_fenicsx.fem.projectile import ProjectileState, advance
 from fabric_fenicsx.fem.yarn_stress import YarnStress, straight_yarn_modulus
 from fabric_fenicsx.impact import trouble
-from fabric_fenicsx.impact.ledger import EnergyLedger, reduce_named
+from fabric_fenicsx.impact.ledger import EnergyLedger, least, reduce_named
 from fabric_fenicsx.impact.pictures import FabricPictures
 from fabric_fenicsx.impact.removal import CellRemoval
 from fabric_fenicsx.impact.scene import SCATTER_FIELDS, Scene, SceneError
@@ -358,8 +358,8 @@ class ImpactSimulation:
         delete, erode = removed
         state = mat.state
         # how far each yarn family has gone anywhere: 1 - min alpha_i (which breaks first)
-        yarn_damage = ({"warp_damage": 1.0 - float(state.alpha1.min(initial=1.0)),
-                        "fill_damage": 1.0 - float(state.alpha2.min(initial=1.0))}
+        yarn_damage = ({"warp_damage": 1.0 - float(least(state.alpha1, 1.0)),
+                        "fill_damage": 1.0 - float(least(state.alpha2, 1.0))}
                        if self.scene.material.damage else {"warp_damage": 0.0, "fill_damage": 0.0})
         damaged = yarn_damage["warp_damage"] > 0.0 or yarn_damage["fill_damage"] > 0.0
         z_max, front, moved = removal.node_extremes(self.X, cd.u, self.axis_xy, self.projectile.radius,

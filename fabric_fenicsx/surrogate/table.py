@@ -390,9 +390,7 @@ class Surrogate:
             self._reject(E1, E2, a1, a2, names)
         st = self.stats
         st.points += E1.size
-        st.E_min, st.E_max = np.minimum(st.E_min, ranges[0]), np.maximum(st.E_max, ranges[1])
-        st.beyond_failure += counts[:2]
-        st.compression += counts[2:4]
+        interp_kernel.record_inputs(counts, ranges, st.beyond_failure, st.compression, st.E_min, st.E_max)
         return E[0], E[1], alpha[0], alpha[1], arrays[0].shape
 
     @staticmethod
@@ -538,22 +536,22 @@ class Surrogate:
             if not np.all((band > 0.0) & (band <= 1.0)):
                 bad = band[~((band > 0.0) & (band <= 1.0))]
                 raise ValueError(f"crack_band scales must lie in (0, 1], got {bad.flat[0]!r}")
-        mu_crit = np.empty((E1.size, 2))
-        mu_crit[:] = self.mu_crit
+        mu_crit = self.mu_crit[None].repeat(E1.size, axis=0)   # a third of a broadcast store's time
         if critical_stretch is not None or softening_scale is not None:
             point_laws(self.fabric.damage, critical_stretch, softening_scale, shape, mu_crit, band,
                        self.mu_safe, self.mu_complete)
         top = (self._mu_top["intact"], self._mu_top["damaged"]) if critical_stretch is not None else None
         P, alpha, residual, status, self.last_damaging = self._update_points(E1, E2, a1h, a2h, tol,
                                                                              band, mu_crit, top)
-        if status.any() and np.any(status == damage_kernel.NON_FINITE):   # status 0: converged
+        # status != 0 (not converged) only where a point iterated: no status to look at when none did
+        if (unsettled := self.last_damaging and status.any()) and np.any(status == damage_kernel.NON_FINITE):
             k = int(np.flatnonzero(status == damage_kernel.NON_FINITE)[0])
             raise SurrogateError(
                 f"surrogate table: a non-finite stretch in the table tile of E1 = {E1[k]!r}, "
                 f"E2 = {E2[k]!r} (alpha_hist = ({a1h[k]!r}, {a2h[k]!r})) stopped the damage "
                 f"iteration; the tile is corrupt: delete the cache folder {self.cache_dir} to "
                 f"rebuild it")
-        fallback = np.flatnonzero(((status == BRACKETED) | (status == UNCONVERGED)) if status.any() else ())
+        fallback = np.flatnonzero((status == BRACKETED) | (status == UNCONVERGED)) if unsettled else status[:0]
         if fallback.size:
             log = self.__dict__.setdefault("damage_fallbacks", FallbackLog())
             first_unconverged = log.unconverged == 0
@@ -633,10 +631,10 @@ class Surrogate:
         E_other, lo, hi, guess, a1, a2 = (np.ascontiguousarray(v, dtype=float)
                                           for v in (E_other, lo, hi, guess, a1, a2))
         x, status = np.empty(lo.size), np.empty(lo.size, np.int8)
-        interp_kernel.zero_force_strain(yarn - 1, E_other, lo, hi, guess, a1, a2, self._table(),
-                                        self._spec((f"P{yarn}",)), tol, max_iter, x, status)
-        missing = np.flatnonzero(status == interp_kernel.ROOT_NEEDS_TILES)
-        if missing.size:
+        waiting = interp_kernel.zero_force_strain(yarn - 1, E_other, lo, hi, guess, a1, a2, self._table(),
+                                                  self._spec((f"P{yarn}",)), tol, max_iter, x, status)
+        if waiting:   # searches that met a tile not built yet
+            missing = np.flatnonzero(status == interp_kernel.ROOT_NEEDS_TILES)
             steps = int(np.ceil(float(np.max(hi[missing] - lo[missing])) / self.h)) + 2
             s = np.linspace(0.0, 1.0, steps)
             own = (lo[missing, None] + s * (hi[missing] - lo[missing])[:, None]).ravel()

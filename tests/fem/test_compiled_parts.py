@@ -194,3 +194,60 @@ def test_central_difference_update_equals_the_numpy_formulas():
         np.testing.assert_allclose(cd.u, u, rtol=1e-13, atol=1e-18)
         np.testing.assert_allclose(cd.v, v, rtol=1e-12, atol=1e-15)
     assert works[0] != 0 and works[2] != 0
+
+
+def test_one_rank_skips_only_scatters_that_change_nothing():
+    """On one rank there are no ghosts: the steps without the scatters, the ghost update and the
+    energies' Allreduce (``Membrane.parallel`` False) give the bits of the steps with them."""
+    if MPI.COMM_WORLD.size > 1:
+        pytest.skip("the skip is for one rank")
+    runs = []
+    for parallel in (True, False):
+        m = membrane("quadrilateral", 0.3, 1, distort=0.1)
+        m.add_term(HourglassControl(0.05, 1e5))
+        assert m.parallel is False and m.V.dofmap.index_map.num_ghosts == 0
+        m.parallel = parallel
+        cd = CentralDifference(m, LinearYarnMaterial(1e5, 8e4), 0.2, np.array([0, 1, 2]), damping=1e-6)
+        f_ext = np.random.default_rng(6).normal(0, 1e-3, m.n_owned_dofs)
+        records = [cd.step(dt, f_ext) for dt in (2e-6, 1.5e-6, 1e-6)]
+        runs.append((cd.u.copy(), cd.v.copy(), m.internal_force(), records))
+    (u, v, f, rec), (u2, v2, f2, rec2) = runs
+    assert np.abs(f).max() > 0 and np.array_equal(u, u2) and np.array_equal(v, v2)
+    assert np.array_equal(f, f2) and rec == rec2
+
+
+def test_least_integrity_equals_numpy_min():
+    """The step's smallest integrities (impact.ledger.least) against numpy's min with an initial
+    value: the same value, NaN where one is; the yarn damage 1 - min the same bits (of two equal
+    zeros either may be numpy's result, and 1 - 0 is 1 for both)."""
+    from fabric_fenicsx.impact.ledger import least
+
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 5, 64, 6000):
+        for special in (None, 0.0, -0.0, np.nan, 1.0, 1.5, 1e-300):
+            a = np.where(rng.random(n) < 0.7, 1.0, rng.uniform(0.0, 1.0, n))
+            if special is not None and n:
+                a[rng.random(n) < 0.05] = special
+            for view in (a, a[::3]):
+                got, want = least(view, 1.0), view.min(initial=1.0)
+                assert (got == want) or (np.isnan(got) and np.isnan(want))
+                x, y = 1.0 - float(got), 1.0 - float(want)
+                assert np.float64(x).tobytes() == np.float64(y).tobytes() or (np.isnan(x) and np.isnan(y))
+
+
+def test_one_rank_reduction_equals_the_allreduce():
+    """reduce_named on one rank returns the values as MPI's sum and max over that rank would."""
+    from fabric_fenicsx.impact.ledger import reduce_named
+
+    comm = MPI.COMM_WORLD
+    if comm.size > 1:
+        pytest.skip("the shortcut is for one rank")
+    values = {"a": 1.5, "b": -0.0, "c": 3, "d": np.float64(np.nan), "e": np.inf, "f": 1e-310}
+    for op in (MPI.SUM, MPI.MAX):
+        local = np.array(list(values.values()), dtype=float)
+        total = np.empty_like(local)
+        comm.Allreduce(local, total, op=op)
+        got = reduce_named(comm, values, op=op)
+        assert list(got) == list(values)
+        assert all(type(x) is type(y) and np.float64(x).tobytes() == np.float64(y).tobytes()
+                   for x, y in zip(got.values(), total))

@@ -243,3 +243,33 @@ def test_compiled_selections_on_the_surrogate(coarse_surrogate):
         r0 = _numpy_relaxed_strains(coarse_surrogate, E1, E2, a1, a2, stats0, guess)
         assert all(x.tobytes() == x0.tobytes() for x, x0 in zip(r, r0))
         assert stats == stats0 and stats.relaxed > 0
+
+
+def test_search_counts_the_points_that_wait_for_tiles(coarse_surrogate):
+    """The compiled force-free search returns how many points have the status ROOT_NEEDS_TILES
+    (numpy's count of them): with a random third of the table's tiles taken as not built, over
+    random strains with zeros of both signs and starting guesses with NaN, both yarns."""
+    from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
+
+    sur = coarse_surrogate
+    rng = np.random.default_rng(31)
+    table = list(sur._table())
+    for layer in (2, 3):   # the ready maps of the intact and the damaged layer
+        table[layer] = table[layer] & (rng.random(table[layer].shape) < 0.67)
+    table = tuple(table)
+    for n in (0, 1, 17, 600):
+        E_other = rng.uniform(-0.01, 0.04, n)
+        E_other[rng.random(n) < 0.1] = 0.0
+        E_other[rng.random(n) < 0.1] = -0.0
+        lo, hi = np.full(n, -0.05), rng.uniform(-0.01, 0.01, n)
+        hi[rng.random(n) < 0.1] = -0.0
+        guess = rng.uniform(-0.05, 0.0, n)
+        guess[rng.random(n) < 0.3] = np.nan
+        a1, a2 = (np.where(rng.random(n) < 0.5, 1.0, rng.uniform(0.2, 1.0, n)) for _ in range(2))
+        for yarn in (0, 1):
+            x, status = np.empty(n), np.empty(n, np.int8)
+            waiting = interp_kernel.zero_force_strain(yarn, E_other, lo, hi, guess, a1, a2, table,
+                                                      sur._spec((f"P{yarn + 1}",)), 1e-15, 60, x,
+                                                      status)
+            assert waiting == np.count_nonzero(status == interp_kernel.ROOT_NEEDS_TILES)
+            assert n < 600 or 0 < waiting < n

@@ -1,7 +1,8 @@
 """The compiled passes of YarnStress.update (fabric_fenicsx.surrogate.kernels.yarn_stress) against
 the numpy expressions they replace, bit for bit over random inputs: the table's clip, the strains
 as given where the tension field leaves them, the live points' gathers and peak strains, the
-scatter of the tension field's strains, and the yarn stresses with their viscous part."""
+scatter of the tension field's strains, the yarn stresses with their viscous part, and the yarn
+tensions."""
 import numpy as np
 import pytest
 
@@ -109,3 +110,20 @@ def test_stresses_equal_numpy(beta_over_dt):
                                                     lam_prev, P_v_prev)
         assert all(same(x, y) for x, y in zip(out, expected))
         assert counts[:2] == expected_counts[:2] and same(counts[2], expected_counts[2])
+
+
+def test_tension_equals_numpy():
+    rng = np.random.default_rng(4)
+    for n in (0, 1, 5, 900):
+        P_el = rng.uniform(-1e3, 5e4, (2, n))
+        lam = rng.uniform(0.5, 1.5, (2, n))
+        for value, share in ((0.0, 0.05), (-0.0, 0.05), (np.nan, 0.03), (np.inf, 0.01)):
+            P_el[rng.random((2, n)) < share] = value
+        for value, share in ((0.0, 0.05), (-0.0, 0.05), (np.nan, 0.03), (-0.2, 0.03),
+                             (np.inf, 0.01), (1e-310, 0.02)):
+            lam[rng.random((2, n)) < share] = value
+        T = np.full((2, n), 7.0)
+        kernel.tension(P_el, lam, T)
+        with np.errstate(over="ignore", invalid="ignore"):   # 1e-310 and inf divide too
+            expected = np.divide(P_el, lam, out=np.zeros_like(P_el), where=lam > 0.0)
+        assert same(T, expected)

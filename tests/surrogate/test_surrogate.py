@@ -359,3 +359,48 @@ def test_compiled_damage_laws_match_the_fibril_module(law):
     for s in (1.0, 0.7, 0.3):
         compiled = np.array([band_alpha(m, mu_crit, s, law_arguments(law)) for m in mu])
         np.testing.assert_allclose(compiled, crack_band_alpha(law, mu, mu_crit, s), rtol=0, atol=1e-14)
+
+
+def test_only_points_that_iterated_have_a_status(sur):
+    """Surrogate.update looks at the damage statuses (non-finite, fallbacks) only when a point
+    iterated: the kernel gives every other point status 0 (converged). Over random states, intact
+    and damaging, below and beyond the onset, the statuses that are not 0 are at most as many as
+    the points that iterated, and all 0 where none did."""
+    rng = np.random.default_rng(21)
+    states = [_damaging_states(400, 22)]
+    for n in (1, 50, 2000):
+        E1, E2 = rng.uniform(-0.02, 0.07, n), rng.uniform(-0.02, 0.05, n)
+        E1[rng.random(n) < 0.05], E2[rng.random(n) < 0.05] = 0.0, -0.0
+        hist = np.where(rng.random((n, 2)) < 0.6, 1.0, rng.uniform(0.0, 1.0, (n, 2)))
+        states.append((E1, E2, hist))
+    iterated_somewhere = False
+    for E1, E2, hist in states:
+        n = E1.size
+        band, mu_crit = np.ones((n, 2)), np.empty((n, 2))
+        mu_crit[:] = sur.mu_crit
+        assert np.array_equal(sur.mu_crit[None].repeat(n, axis=0), mu_crit)   # update's copy
+        *_, status, iterated = sur._update_points(E1, E2, hist[:, 0].copy(), hist[:, 1].copy(),
+                                                  1e-10, band, mu_crit)
+        assert np.count_nonzero(status) <= iterated
+        iterated_somewhere |= iterated > 0
+    assert iterated_somewhere
+
+
+def test_range_statistics_pass_equals_numpy():
+    """interp_kernel.record_inputs (the range statistics of Surrogate._inputs, in place) against
+    the numpy expressions it replaces, bit for bit: counts added, the range widened by
+    numpy.minimum / numpy.maximum, with NaN, infinities and zeros of both signs."""
+    from fabric_fenicsx.surrogate.kernels import interp as interp_kernel
+
+    rng = np.random.default_rng(41)
+    values = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 0.01, -0.02, 0.03])
+    for _ in range(3000):
+        E_min, E_max = rng.choice(values, 2), rng.choice(values, 2)
+        ranges = rng.choice(values, (2, 2))
+        counts = rng.integers(0, 50, 5)
+        beyond, compression = rng.integers(0, 9, 2), rng.integers(0, 9, 2)
+        expected = (beyond + counts[:2], compression + counts[2:4], np.minimum(E_min, ranges[0]),
+                    np.maximum(E_max, ranges[1]))
+        interp_kernel.record_inputs(counts, ranges, beyond, compression, E_min, E_max)
+        for got, want in zip((beyond, compression, E_min, E_max), expected):
+            assert got.dtype == want.dtype and got.tobytes() == want.tobytes()

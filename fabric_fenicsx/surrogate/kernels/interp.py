@@ -202,10 +202,12 @@ def zero_force_strain(yarn, E_other, lo, hi, guess, a1, a2, table, spec, tol, ma
     ``tol``; it starts from ``guess`` where that lies inside the bracket (the last step's root:
     one or two Newton steps), else from hi. ``status``: ROOT_FOUND; ROOT_TENSION where P(lo) >=
     0 (nothing to find, out = lo); ROOT_NONE where P(hi) < 0 too (out = lo); ROOT_NEEDS_TILES
-    where a tile on the way is not built (out not set)."""
+    where a tile on the way is not built (out not set). Returns how many points have that status
+    (numpy.count_nonzero(status == ROOT_NEEDS_TILES)): the caller looks for them only then."""
     # The force is evaluated at one place, a loop over the evaluations (``at``: which one, P(lo),
     # P(x) at the Newton iterate or P(right)): numba copies an inlined function (_quantity_slopes)
     # once per call site, and with four sites that copy took 19 s of the kernel's 20 s compile.
+    waiting = 0
     for n in range(E_other.size):
         e, x1, x2 = E_other[n], a1[n], a2[n]
         left, right = lo[n], hi[n]
@@ -275,6 +277,9 @@ def zero_force_strain(yarn, E_other, lo, hi, guess, a1, a2, table, spec, tol, ma
                 break
             x = new
             at, xe = AT_X, x
+        if status[n] == ROOT_NEEDS_TILES:
+            waiting += 1
+    return waiting
 
 
 @njit(cache=True, nogil=True)
@@ -305,3 +310,17 @@ def prepare_inputs(E1, E2, a1, a2, E_fail, E_lo, E_hi, E, alpha, counts, ranges)
                 counts[2 + i] += 1
             E[i, n] = min(max(e[i], E_lo), E_hi)
     ranges[0, 0], ranges[0, 1], ranges[1, 0], ranges[1, 1] = lo1, lo2, hi1, hi2
+
+
+@njit(cache=True, nogil=True)
+def record_inputs(counts, ranges, beyond_failure, compression, E_min, E_max):
+    """A :func:`prepare_inputs` pass's ``counts`` and strain ``ranges`` into the surrogate's range
+    statistics, in place: the points beyond failure and below the table added per yarn, the range
+    seen widened as numpy.minimum / numpy.maximum do it (NaN if either is, the second of two
+    equal values)."""
+    for i in range(2):
+        beyond_failure[i] += counts[i]
+        compression[i] += counts[2 + i]
+        lo, hi = E_min[i], E_max[i]
+        E_min[i] = lo if (lo < ranges[0, i] or lo != lo) else ranges[0, i]
+        E_max[i] = hi if (hi > ranges[1, i] or hi != hi) else ranges[1, i]

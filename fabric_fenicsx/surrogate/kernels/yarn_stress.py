@@ -2,7 +2,8 @@
 stiffness-proportional viscous stress and its dissipation (see :mod:`fabric_fenicsx.fem.yarn_stress`,
 class ``YarnStress``), one pass over the points instead of some thirty numpy passes; and the
 passes around the surrogate's kernels in ``YarnStress.update`` (the live points' inputs and peak
-strains, the table's clip, the tension field's strains put back), each giving numpy's bits.
+strains, the table's clip, the tension field's strains put back) and the yarn tensions the
+hourglass term reads before every assembly, each giving numpy's bits.
 """
 
 from __future__ import annotations
@@ -115,6 +116,15 @@ def stresses(E1, E2, live, p1, p2, ref, E_lo, beta_over_dt, w, lam_prev, P_v_pre
         P_el[0, g], P_el[1, g], P_v[0, g], P_v[1, g], lam[0, g], lam[1, g] = q1, q2, v1, v2, l1, l2
         P[0, g], P[1, g] = q1 + v1, q2 + v2
     return below, slack_tension, work
+
+
+@njit(cache=True, nogil=True)
+def tension(P_el, lam, T):
+    """The yarn tensions P_el / lam into ``T`` (all (2, n)), zero where lam is not > 0:
+    numpy.divide(P_el, lam, out=numpy.zeros_like(P_el), where=lam > 0.0)."""
+    for i in range(P_el.shape[0]):
+        for g in range(P_el.shape[1]):
+            T[i, g] = P_el[i, g] / lam[i, g] if lam[i, g] > 0.0 else 0.0
 
 
 @njit(cache=True, nogil=True)
