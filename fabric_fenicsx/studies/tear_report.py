@@ -55,7 +55,9 @@ def compare_members(rows: list[dict]) -> dict:
     :data:`AGREEMENT`; and, since a seed is the same fabric on every mesh (the scatter is a field
     of the material, read by each mesh's cells), the paired differences of the tear load and the
     work per length between each two families with their 95 % intervals. Empty where no size has
-    members."""
+    members. With the scatter a panel may break away from the slit first: the work per length
+    then counts that crack's energy too (over the tear's length), and the tear load is the one
+    to compare (docs/tear_test.md)."""
     from fabric_fenicsx.studies.means import mean_of
 
     out = {}
@@ -93,10 +95,12 @@ def compare_members(rows: list[dict]) -> dict:
     return out
 
 
-def _mean_text(m: dict | None, digits: int) -> str:
+def _mean_text(m: dict | None, digits: int, of: int | None = None) -> str:
+    """``mean +- half-width``, with ``(n k)`` where fewer than ``of`` members gave the measure."""
     if m is None:
         return "-"
-    return f"{m['mean']:.{digits}f}" + (f" +- {m['ci95']:.{digits}f}" if m["ci95"] is not None else "")
+    text = f"{m['mean']:.{digits}f}" + (f" +- {m['ci95']:.{digits}f}" if m["ci95"] is not None else "")
+    return text + (f" (n {m['n']})" if of is not None and m["n"] != of else "")
 
 
 def format_members(comparison: dict) -> str:
@@ -105,9 +109,10 @@ def format_members(comparison: dict) -> str:
     for size, c in comparison.items():
         lines.append(f"{size}, strength-scatter members (means with 95 % intervals):")
         for f, s in c["families"].items():
-            lines.append(f"  {f:<16} n {s['n']:>3}  tear load {_mean_text(s['tear_load'], 0)} N, peak "
-                         f"{_mean_text(s['peak_force'], 0)} N, work {_mean_text(s['work_per_length'], 2)} J/m, off "
-                         f"yarn {_mean_text(s['path_deviation'], 1)} deg, torn through {s['torn_through']:.0%}")
+            n = s["n"]
+            lines.append(f"  {f:<16} n {n:>3}  tear load {_mean_text(s['tear_load'], 0, n)} N, peak "
+                         f"{_mean_text(s['peak_force'], 0, n)} N, work {_mean_text(s['work_per_length'], 2, n)} J/m, "
+                         f"off yarn {_mean_text(s['path_deviation'], 1, n)} deg, torn through {s['torn_through']:.0%}")
         lines.append(f"  spread of the means: tear load {c['tear_load_spread']:.1%}, peak {c['peak_force_spread']:.1%}, "
                      f"work per length {c['work_per_length_spread']:.1%} (agree within {AGREEMENT:.0%}: "
                      f"{c['tear_load_agrees']}, {c['peak_force_agrees']}, {c['work_per_length_agrees']})")

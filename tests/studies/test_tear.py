@@ -197,4 +197,8 @@ def test_the_members_are_compared_as_means_and_paired_by_seed():
     assert paired["tear_load"]["mean"] == pytest.approx(-100.0) and paired["tear_load"]["ci95"] == pytest.approx(0.0)
     assert paired["work_per_length"]["mean"] == pytest.approx(0.0)
     assert "paired a - b" in format_members({"2 mm": c})
+    rows[-1]["tear_load"] = math.nan                              # b's third fabric broke elsewhere first
+    c = compare_members(rows)["2 mm"]
+    assert c["families"]["b"]["tear_load"]["n"] == 2 and c["paired"]["a - b"]["tear_load"]["n"] == 2
+    assert "(n 2)" in format_members({"2 mm": c})
     assert compare_members([row("a", -1, 1.0, 1.0)]) == {}
