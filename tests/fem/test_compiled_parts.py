@@ -11,9 +11,10 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fabric_fenicsx.impact.removal import _node_extremes as node_extremes
+from fabric_fenicsx.fem import explicit
 from fabric_fenicsx.fem.explicit import CentralDifference, LinearYarnMaterial
 from fabric_fenicsx.fem.membrane import Membrane
-from fabric_fenicsx.fem.packing import CoefficientPacker
+from fabric_fenicsx.fem.packing import CoefficientPacker, _pack_columns
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile, ProjectileState
 from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear
 
@@ -76,6 +77,108 @@ def test_gathered_coefficients_and_force_equal_dolfinx_packing(cell, degree):
     for form, packer in zip(m._form, m._packers):
         ref = pack_coefficients(form)
         assert all(np.array_equal(packer.pack()[k], ref[k]) for k in ref)
+
+
+def _copy_and_take(packer):
+    """The packing by a copy of the arrays into one source and numpy's take (the general path)."""
+    source = np.concatenate(packer._arrays)
+    return {key: np.take(source, index) for key, index in packer._index.items()}
+
+
+def _special_values(rng, n):
+    """n random values with zeros of both signs, NaN, infinities and subnormals among them."""
+    x = rng.standard_normal(n) * 10.0 ** rng.integers(-300, 300, n)
+    pick = rng.integers(0, 7, n)
+    for k, v in enumerate((0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324)):
+        x[pick == k] = v
+    return x
+
+
+def test_packing_from_the_arrays_equals_copy_and_take():
+    """The membrane's forms pack from the Functions' arrays in one pass (no source copy): the
+    bits of the copy-and-take packing, for values with both zeros, NaN and infinities."""
+    m = membrane("quadrilateral", 0.3, 1)
+    m.add_term(HourglassControl(0.05, 1e5))
+    m.internal_force()
+    assert all(p.gathers and p._columns for p in m._packers)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        for packer in m._packers:
+            for a in packer._arrays:
+                a[:] = _special_values(rng, a.size)
+            mine, ref = packer.pack(), _copy_and_take(packer)
+            assert mine.keys() == ref.keys()
+            for key in ref:
+                assert np.array_equal(mine[key].view(np.int64), ref[key].view(np.int64))
+
+
+def test_pack_columns_kernel_equals_numpy_take():
+    rng = np.random.default_rng(8)
+    for n_cells, width, n_copied in ((1, 1, 1), (7, 12, 3), (50, 6, 2)):
+        a = _special_values(rng, 40)
+        copied = tuple(_special_values(rng, n_cells) for _ in range(n_copied))
+        index = rng.integers(0, a.size, (n_cells, width)).astype(np.uint32)
+        first = int(rng.integers(0, n_copied + 1))     # the gathered block between the columns
+        columns = np.array([c if c < first else c + width for c in range(n_copied)], np.int64)
+        out = np.full((n_cells, width + n_copied), 1.5)
+        _pack_columns(a, index, first, copied, columns, out)
+        ref = np.empty_like(out)
+        ref[:, first:first + width] = np.take(a, index.astype(np.int64))
+        for b, c in zip(copied, columns):
+            ref[:, c] = b
+        assert np.array_equal(out.view(np.int64), ref.view(np.int64))
+
+
+def test_bounded_values_equal_numpy_and_their_sum_is_finite():
+    """The step's finiteness test: the compiled bound test against numpy's, and where it holds
+    the numpy sums the step made before are finite; where it fails the step sums as before."""
+    rng = np.random.default_rng(9)
+    for trial in range(300):
+        n = [int(k) for k in rng.integers(0, 40, 4)]
+        arrays = [rng.standard_normal(k) * 10.0 ** rng.uniform(-5, 308, k) for k in n]
+        bound = explicit._SUM_BOUND / (sum(n) + 1)
+        for x in arrays:   # values at the bound, zeros of both signs, NaN, infinities
+            if x.size:
+                x[rng.integers(0, x.size)] = rng.choice([bound, -bound, np.nextafter(bound, np.inf),
+                                                         0.0, -0.0, np.nan, np.inf, -np.inf, 1.0])
+        want = bool(np.all(np.abs(np.concatenate(arrays)) <= bound))
+        assert explicit._small(*arrays) == want
+        if want:
+            assert np.isfinite(explicit._point_sums(*arrays))
+    big = [np.full(10, 1.7e307), np.full(10, 1.7e307), np.zeros(1), np.zeros(1)]
+    with np.errstate(over="ignore"):
+        assert not explicit._small(*big) and not np.isfinite(explicit._point_sums(*big))
+    assert not explicit._small(np.zeros(2, np.float32), np.zeros(2), np.zeros(2), np.zeros(2))
+
+
+def test_non_finite_stress_raises_with_the_sums():
+    m = membrane("quadrilateral", 0.2, 1)
+
+    class NaNYarns(LinearYarnMaterial):
+        def update(self, E1, E2, dt=0.0):
+            P1, P2 = super().update(E1, E2, dt)
+            P1[3] = np.nan
+            return P1, P2
+
+    cd = CentralDifference(m, NaNYarns(1e5, 8e4), 0.2, np.array([0, 1, 2]))
+    with pytest.raises(FloatingPointError, match=r"strain/stress sums = \[.*nan\]"):
+        cd.step(1e-6)
+
+
+def test_non_finite_work_reports_the_strain_and_stress_sum():
+    """Where the strains and stresses are small their sum is not made during the step, but the
+    message of a non-finite step still shows it."""
+    m = membrane("quadrilateral", 0.2, 1)
+    cd = CentralDifference(m, LinearYarnMaterial(1e5, 8e4), 0.2, np.array([0, 1, 2]))
+    cd.step(1e-6)
+    f_ext = np.zeros(m.n_owned_dofs)
+    f_ext[5] = np.inf
+    with pytest.raises(FloatingPointError) as error:
+        cd.step(1e-6, f_ext)
+    fields = cd.material.point_fields()
+    total = explicit._point_sums(fields["E1"], fields["E2"], fields["P1"], fields["P2"])
+    shown = str(error.value).split("sums = [")[1].split("]")[0].split()
+    assert total != 0.0 and float(shown[-1]) == pytest.approx(total, rel=1e-7)
 
 
 def test_packer_falls_back_where_the_values_are_transformed():
