@@ -3,8 +3,8 @@
 Runs the scene of benchmarks/bench_impact.py (demos/scenes/y90.toml at 57.3 m/s on its own 1.41 mm
 graded mesh) with every compiled kernel of the step timed: the numba kernels of the surrogate,
 the yarn stresses, strains, hourglass forces and stiffness, contact, cell removal and the central
-difference, DOLFINx's ``assemble_vector`` and the ``numpy.take`` that packs its coefficients. It prints each
-kernel's time per step and their sum against the whole step. The sum is the step's floor for
+difference, DOLFINx's ``assemble_vector`` and the pass (or ``numpy.take``) that packs its
+coefficients. It prints each kernel's time per step and their sum against the whole step. The sum is the step's floor for
 any change that keeps these kernels (the same answers to round-off, DOLFINx's assembly of the
 weak form): Python around them can be removed, the kernels' own work cannot.
 
@@ -24,6 +24,7 @@ import numpy as np
 
 import fabric_fenicsx.fem.explicit as explicit
 import fabric_fenicsx.fem.membrane as membrane
+import fabric_fenicsx.fem.packing as packing
 import fabric_fenicsx.fem.point_strains as point_strains
 import fabric_fenicsx.fem.projectile as projectile
 import fabric_fenicsx.fem.terms as terms
@@ -57,10 +58,12 @@ KERNELS = [
     (point_strains, "_yarn_strains", "yarn strains at the points"),
     (membrane.fem, "assemble_vector", "DOLFINx assemble_vector (internal force)"),
     (np, "take", "numpy.take (packed coefficients)"),
+    (packing, "_pack_columns", "packed coefficients from the Functions' arrays"),
     (terms, "_add_hourglass_forces", "hourglass forces (and energy in history rows)"),
     (terms, "_hourglass_stiffness", "hourglass stiffness per cell"),
     (explicit, "_forces_and_works", "central difference: forces and works"),
     (explicit, "_leapfrog", "central difference: update"),
+    (explicit, "_bounded", "central difference: finiteness bound test"),
     (simulation, "near_nodes", "contact: nodes near the projectile"),
     (projectile, "penalty_forces", "contact: penalty and friction"),
     (projectile, "_inside", "contact: nodes inside the solid (cylinder, gap, normal)"),
