@@ -4,9 +4,9 @@ Runs the scene of benchmarks/bench_impact.py (demos/scenes/y90.toml at 57.3 m/s 
 graded mesh) with every compiled kernel of the step timed: the numba kernels of the surrogate,
 the yarn stresses, strains, hourglass forces and stiffness, contact, cell removal and the central
 difference, DOLFINx's ``assemble_vector`` and the pass (or ``numpy.take``) that packs its
-coefficients. It prints each kernel's time per step and their sum against the whole step. The sum is the step's floor for
-any change that keeps these kernels (the same answers to round-off, DOLFINx's assembly of the
-weak form): Python around them can be removed, the kernels' own work cannot.
+coefficients. It prints each kernel's time per step and their sum against the whole step. The
+sum is the step's floor for any change that keeps these kernels (the same answers to round-off,
+DOLFINx's assembly of the weak form): Python around them can be removed, the kernels' own work cannot.
 
     .venv/bin/python benchmarks/bench_kernels.py [--scene demos/scenes/y90.toml] [--set KEY=VALUE ...]
 
