@@ -392,6 +392,12 @@ class Membrane:
         f.interpolate(fn)
         return f.x.array[:self.n_owned_dofs].copy()
 
+    def restart(self) -> None:
+        """Back to the reference state for another run on this mesh: zero displacement and every
+        cell live again (the cells an earlier run removed are back)."""
+        self.set_displacement(np.zeros(self.n_owned_dofs))
+        self.live.x.array[:] = 1.0
+
     def set_displacement(self, owned_values: np.ndarray) -> None:
         """Set the owned displacement dofs (m) and update the ghosts."""
         owned_values = np.asarray(owned_values)
