@@ -64,6 +64,26 @@ def _done(path: Path) -> list[dict]:
     return [{k: (v if k in text else float(v)) for k, v in r.items()} for r in rows]
 
 
+def _csv_row(r: dict, columns) -> list[str]:
+    """A tear.csv row: text as it is, numbers to ten digits, a column the row lacks as nan."""
+    return [r[c] if isinstance(r.get(c), str) else f"{r.get(c, math.nan):.10g}" for c in columns]
+
+
+def _upgrade(table: Path, rows: list[dict]) -> None:
+    """Rewrite ``table`` with today's columns if it was written with others (an older version's:
+    the columns it lacks read as nan), so that new rows can be appended to it."""
+    from fabric_fenicsx.studies.tear_report import COLUMNS
+
+    with open(table) as f:
+        header = next(csv.reader(f), None)
+    if header is not None and tuple(header) == COLUMNS:
+        return
+    with open(table, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(COLUMNS)
+        w.writerows(_csv_row(r, COLUMNS) for r in rows)
+
+
 def run(args: argparse.Namespace) -> int:
     from fabric_fenicsx.cli._checks import out_problem
     from fabric_fenicsx.studies import tear
@@ -112,7 +132,10 @@ def _run(args, plan, setup, out: Path) -> int:
         return 2
     out.mkdir(parents=True, exist_ok=True)
     recorded.write_text(wanted)
-    rows = [r for r in _done(table) if r["notch"] == notch]
+    every = _done(table)
+    if table.exists():
+        _upgrade(table, every)
+    rows = [r for r in every if r["notch"] == notch]
     have = {(r["family"], r["h"], int(r["seed"])) for r in rows}
     if not table.exists():
         with open(table, "w", newline="") as f:
@@ -146,7 +169,7 @@ def _run(args, plan, setup, out: Path) -> int:
             if seed < 0:
                 np.savez_compressed(out / f"tear-{family}-{h * 1e3:g}mm.npz", **cells)
             with open(table, "a", newline="") as f:
-                csv.writer(f).writerow([r[c] if isinstance(r[c], str) else f"{r[c]:.10g}" for c in tear_report.COLUMNS])
+                csv.writer(f).writerow(_csv_row(r, tear_report.COLUMNS))
             rows.append(r)
             say(f"tear: {family} {h * 1e3:g} mm seed {seed}: tear load {r['tear_load']:.1f} N, work "
                 f"{r['work_per_length']:.2f} J/m, path {r['path_angle']:.1f} deg, {r['end']} "

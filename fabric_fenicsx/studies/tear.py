@@ -25,9 +25,11 @@ beyond the slit breaks (its warp alpha below 1/2, or removed) and joins the slit
 unit length of tear**, the energy given up by the breaking yarns (damage dissipation plus the
 stored energy of removed cells) while the tear grew, over its length; and the **path's angle**, the principal direction of the centres of the
 tear's cells (the broken cells joined to the slit through broken cells; 90 degrees: along the
-fill yarns, straight across the load). A tear that
-follows the yarns has the same load, work and angle on every family; one that follows the
-cells does not. ``fabric-fenicsx study tear`` is its command line.
+fill yarns, straight across the load); and the **tip concentration**, the warp strain of the
+tear's first cell over that of the uncut section at half the tear load (:func:`tip_concentration`:
+1 in the thesis's membrane, whose yarns pass no load to each other; what the cells add depends on
+their shape). A tear that follows the yarns has the same load, work and angle on every family;
+one that follows the cells does not. ``fabric-fenicsx study tear`` is its command line.
 """
 from __future__ import annotations
 
@@ -41,7 +43,8 @@ import numpy as np
 FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack")
 """The failure rules a pull can use: the scenes' two (``material.failure``) and the yarn average."""
 
-__all__ = ["TearSetup", "parse_family", "slit_cells", "path_angle", "work_per_length", "TearTest"]
+__all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "tip_concentration", "path_angle",
+           "work_per_length", "TearTest"]
 
 BROKEN_ALPHA = 0.5
 """A cell is broken once its warp alpha (the fraction of fibrils left) falls below this."""
@@ -160,6 +163,39 @@ def slit_cells(corners: np.ndarray, setup: TearSetup) -> np.ndarray:
     return np.flatnonzero(hit)
 
 
+SECTION_MARGIN = 0.005
+"""How far (m) the cells of the uncut section (:func:`section_cells`) lie from the slit's tip and
+from the clamped edges."""
+
+
+def section_cells(centres: np.ndarray, setup: TearSetup) -> np.ndarray:
+    """The cells of the uncut section that the tip's strain is compared with
+    (:func:`tip_concentration`): centres at least :data:`SECTION_MARGIN` beyond the slit's tip
+    across the load (past both tips for a centre notch) and from the clamped edges."""
+    y1 = setup.slit_ends[1]
+    y = centres[:, 1] if setup.notch == "edge" else np.abs(centres[:, 1])
+    far = (y >= y1 + SECTION_MARGIN) & (np.abs(centres[:, 0]) <= setup.side / 2 - SECTION_MARGIN)
+    return np.flatnonzero(far)
+
+
+def tip_concentration(forces: np.ndarray, beside_strains: np.ndarray, section_strains: np.ndarray,
+                      tear_load: float, first: np.ndarray) -> float:
+    """The strain concentration of the slit's tip as the mesh resolves it: the warp strain of the
+    tear's first cell (``first``, columns of ``beside_strains``) over the mean warp strain of the
+    uncut section (``section_strains``), at the sample before the tear whose end force
+    (``forces``) is nearest half the tear load (the largest over the first cells if several broke
+    in one sample). Rows are samples before the tear. The thesis's membrane carries load only
+    along its yarns (Sec. 2.1): every uncut yarn carries the net section's strain and a slit's tip
+    concentrates nothing (1.0); what lies above 1 the cells add by coupling neighbouring yarns,
+    which depends on the tip cell's shape and orientation (docs/tear_test.md). NaN without a
+    tear or without samples before it."""
+    forces = np.asarray(forces, float)
+    if not (math.isfinite(tear_load) and forces.size and len(first)):
+        return math.nan
+    k = int(np.argmin(np.abs(forces - 0.5 * tear_load)))
+    return float(np.max(np.asarray(beside_strains)[k, first]) / section_strains[k])
+
+
 def path_angle(centres: np.ndarray) -> tuple[float, float]:
     """(angle from x in degrees, in [0, 180); spread across the path, m) of the principal
     direction of the broken cells' centres ``centres`` (n, 2): the line a tear runs along.
@@ -241,6 +277,10 @@ class TearTest:
         nodes = cell_corners(m.V, m.n_cells)
         incidence = csr_matrix((np.ones(nodes.size), (np.repeat(np.arange(m.n_cells), 4), nodes.ravel())))
         self._adjacent = (incidence @ incidence.T).tocsr()      # cells that share a node
+        beside = np.unique(self._adjacent[self.slit].indices)
+        self.beside = beside[~np.isin(beside, self.slit)]
+        """The cells sharing a node with the slit's: the tear's first cells are among them."""
+        self.section = section_cells(self.centres, setup)
 
     def _yarn_average(self):
         """The driving strains of the yarn-average rule on this mesh (built once)."""
@@ -349,6 +389,7 @@ class TearTest:
         t_max = 3.0 * (math.sqrt(1 + 2 * E_fail) - 1.0) * s.side / s.speed
         npc = m.n_points_per_cell
         history, peak, first, elsewhere = [], 0.0, None, None
+        tip_samples, concentration = [], math.nan    # (force, beside cells' and section's warp strains)
         end = "time limit"
         while cd.time < t_max:
             cd.step(dt)
@@ -366,7 +407,15 @@ class TearTest:
                     f"{cd.time * 1e6:.2f} us (step {cd.n_steps}, dt {dt:.3e} s); lower dt_safety "
                     f"({s.dt_safety}) or raise the hourglass control ({s.hourglass})")
             broken = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
-            length = self.tear_length(self.tear_cells(broken))
+            torn = self.tear_cells(broken)
+            length = self.tear_length(torn)
+            if first is None and length > 0.0:
+                f, b, sec = (np.array(x) for x in zip(*tip_samples)) if tip_samples else ([], [], [])
+                concentration = tip_concentration(f, b, sec, force, np.flatnonzero(np.isin(self.beside, torn)))
+            elif first is None:
+                warp = material.E1.reshape(-1, npc).mean(axis=1)
+                intact = self.section[~broken[self.section]]   # a crack elsewhere is not the section
+                tip_samples.append((force, warp[self.beside], warp[intact].mean() if intact.size else math.nan))
             e = material.energies()
             history.append((cd.time, force, length, e["damage_dissipation"] + e["erosion_energy"]))
             peak = max(peak, force)
@@ -396,7 +445,7 @@ class TearTest:
                 "work_per_length": work_per_length(hist[:, 2], hist[:, 3]),
                 "tear_length": float(hist[-1, 2]) if hist.size else 0.0,
                 "path_angle": angle, "path_deviation": yarn_deviation(angle) if math.isfinite(angle) else math.nan,
-                "path_spread": spread, "n_tear_cells": int(tear_cells.size),
+                "path_spread": spread, "tip_concentration": concentration, "n_tear_cells": int(tear_cells.size),
                 "deleted": int(removal.deleted_cells.sum()), "eroded": int(removal.eroded_cells.sum()),
                 "damage_dissipation": e["damage_dissipation"], "erosion_energy": e["erosion_energy"],
                 "viscous_dissipation": e["viscous_dissipation"], "end": end, "steps": cd.n_steps,

@@ -11,9 +11,12 @@ __all__ = ["COLUMNS", "MEMBER_MEASURES", "compare_families", "compare_members", 
 
 COLUMNS = ("family", "h", "seed", "n_cells", "notch", "tear_load", "peak_force", "work_per_length",
            "tear_length", "path_angle", "path_deviation", "path_spread", "n_tear_cells", "deleted",
-           "eroded", "damage_dissipation", "erosion_energy", "viscous_dissipation", "end", "steps", "seconds")
+           "eroded", "damage_dissipation", "erosion_energy", "viscous_dissipation", "end", "steps", "seconds",
+           "tip_concentration")
 """tear.csv's columns (SI units: N, J/m, m, J, s; angles in degrees from the warp, x; seed -1:
-no strength scatter)."""
+no strength scatter; ``tip_concentration`` a ratio of strains,
+:func:`~fabric_fenicsx.studies.tear.tip_concentration`; a table written before it had the column
+reads it as NaN)."""
 
 AGREEMENT = 0.10
 """The families agree on a measure when its spread (max - min) is within this fraction of its mean."""
@@ -43,7 +46,7 @@ def compare_families(rows: list[dict]) -> dict:
     return out
 
 
-MEMBER_MEASURES = ("tear_load", "peak_force", "work_per_length", "path_deviation")
+MEMBER_MEASURES = ("tear_load", "peak_force", "work_per_length", "path_deviation", "tip_concentration")
 """The measures :func:`compare_members` averages over a family's strength-scatter members."""
 
 
@@ -71,7 +74,7 @@ def compare_members(rows: list[dict]) -> dict:
             mine = [r for r in at if r["family"] == f]
             stats = {"n": len(mine), "torn_through": sum(r["end"].startswith("torn through") for r in mine) / len(mine)}
             for key in MEMBER_MEASURES:
-                m = mean_of(r[key] for r in mine if math.isfinite(r[key]))
+                m = mean_of(r[key] for r in mine if math.isfinite(r.get(key, math.nan)))
                 stats[key] = None if m is None else {"mean": m.mean, "ci95": m.half_width, "n": m.n}
             entry["families"][f] = stats
         for key in ("tear_load", "peak_force", "work_per_length"):
@@ -112,7 +115,8 @@ def format_members(comparison: dict) -> str:
             n = s["n"]
             lines.append(f"  {f:<16} n {n:>3}  tear load {_mean_text(s['tear_load'], 0, n)} N, peak "
                          f"{_mean_text(s['peak_force'], 0, n)} N, work {_mean_text(s['work_per_length'], 2, n)} J/m, "
-                         f"off yarn {_mean_text(s['path_deviation'], 1, n)} deg, torn through {s['torn_through']:.0%}")
+                         f"off yarn {_mean_text(s['path_deviation'], 1, n)} deg, tip concentration "
+                         f"{_mean_text(s.get('tip_concentration'), 3, n)}, torn through {s['torn_through']:.0%}")
         lines.append(f"  spread of the means: tear load {c['tear_load_spread']:.1%}, peak {c['peak_force_spread']:.1%}, "
                      f"work per length {c['work_per_length_spread']:.1%} (agree within {AGREEMENT:.0%}: "
                      f"{c['tear_load_agrees']}, {c['peak_force_agrees']}, {c['work_per_length_agrees']})")
@@ -125,11 +129,12 @@ def format_members(comparison: dict) -> str:
 def format_report(rows: list[dict], comparison: dict) -> str:
     """A line per mesh, then the families' agreement per size."""
     lines = [f"{'mesh':<22}{'seed':>5}{'cells':>7}{'tear load (N)':>15}{'peak (N)':>10}{'work (J/m)':>12}"
-             f"{'path (deg)':>11}{'off yarn':>9}{'removed':>9}{'s':>7}  end"]
+             f"{'path (deg)':>11}{'off yarn':>9}{'tip conc.':>10}{'removed':>9}{'s':>7}  end"]
     for r in rows:
         lines.append(f"{r['family'] + ' ' + format(r['h'] * 1e3, 'g') + ' mm':<22}{int(r['seed']):>5}"
                      f"{int(r['n_cells']):>7}{r['tear_load']:>15.1f}{r['peak_force']:>10.1f}"
                      f"{r['work_per_length']:>12.2f}{r['path_angle']:>11.1f}{r['path_deviation']:>9.1f}"
+                     f"{r.get('tip_concentration', math.nan):>10.3f}"
                      f"{int(r['deleted']) + int(r['eroded']):>9}{r['seconds']:>7.1f}  {r['end']}")
     for size, c in comparison.items():
         lines.append(f"{size}: spread over {', '.join(c['families'])}: tear load {c['tear_load_spread']:.1%}, "

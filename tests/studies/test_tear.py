@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from fabric_fenicsx.studies.tear import (TearSetup, parse_family, path_angle, slit_cells, work_per_length,
-                                         yarn_deviation)
+from fabric_fenicsx.studies.tear import (SECTION_MARGIN, TearSetup, parse_family, path_angle, section_cells,
+                                         slit_cells, tip_concentration, work_per_length, yarn_deviation)
 
 
 def _grid(n: int, side: float) -> np.ndarray:
@@ -54,6 +54,31 @@ def test_the_work_per_length_counts_from_the_tears_start():
     energy = np.concatenate((energy, energy[-1] + np.linspace(0.01, 2.0, 20)))
     assert work_per_length(length, energy) == pytest.approx(9.0)
     assert math.isnan(work_per_length(np.zeros(5), np.ones(5)))
+
+
+def test_the_tip_concentration_is_the_first_cells_strain_over_the_sections_at_half_the_tear_load():
+    forces = np.array([100.0, 400.0, 900.0, 1300.0, 1800.0])      # samples before the tear
+    section = np.array([0.010, 0.020, 0.030, 0.040, 0.050])
+    beside = np.outer(section, [1.0, 1.5, 1.2])                     # three cells beside the slit
+    beside[2] = [0.030, 0.051, 0.039]                               # the sample nearest 2000 / 2
+    assert tip_concentration(forces, beside, section, 2000.0, np.array([2])) == pytest.approx(1.3)
+    assert tip_concentration(forces, beside, section, 2000.0, np.array([0, 1, 2])) == pytest.approx(1.7)
+    assert tip_concentration(forces, beside, section, 3600.0, np.array([0])) == pytest.approx(1.0)
+    assert math.isnan(tip_concentration(forces, beside, section, math.nan, np.array([1])))
+    assert math.isnan(tip_concentration(np.zeros(0), np.zeros((0, 3)), np.zeros(0), 2000.0, np.array([1])))
+
+
+@pytest.mark.parametrize("notch", ["edge", "centre"])
+def test_the_uncut_section_lies_beyond_the_slit_and_away_from_the_clamps(notch):
+    setup = TearSetup(side=0.06, slit=0.012, notch=notch)
+    centres = _grid(24, 0.06).mean(axis=1)                          # 2.5 mm cells, centres off the bounds
+    cells = section_cells(centres, setup)
+    y = centres[cells, 1] if notch == "edge" else np.abs(centres[cells, 1])
+    assert cells.size > 0 and y.min() >= setup.slit_ends[1] + SECTION_MARGIN
+    assert np.abs(centres[cells, 0]).max() <= 0.03 - SECTION_MARGIN
+    # every cell that far out is taken: 20 columns (|x| <= 25 mm) of 17 rows (y >= -13 mm) beyond an
+    # edge notch ending at -18 mm, of 2 x 8 rows (|y| >= 11 mm) beside a centred one
+    assert cells.size == 20 * (17 if notch == "edge" else 16)
 
 
 def test_families_are_named_and_bad_ones_refused():
@@ -112,6 +137,9 @@ def test_a_pull_on_the_aligned_grid_tears_straight_along_the_fill():
     # 1495 N per 10 mm, docs/mesh_independence.md)
     assert 0 < r["tear_load"] <= r["peak_force"] < 1495.0 * 60 / 10
     assert r["work_per_length"] > 0 and r["damage_dissipation"] > 0
+    # this membrane's yarns pass no load to each other, so a slit's tip concentrates only what the
+    # cells' coupling of neighbouring yarns adds (measured 1.07 here, 1.23 on 2 mm cells)
+    assert 1.0 < r["tip_concentration"] < 1.5
     # a second pull of the same panel (as a strength-scatter member is) starts intact again
     again = test.pull(surrogate)
     for key in ("tear_load", "peak_force", "work_per_length", "steps", "deleted", "eroded"):
@@ -178,7 +206,7 @@ def test_the_members_are_compared_as_means_and_paired_by_seed():
 
     def row(family, seed, load, work, end="torn through"):
         return {"family": family, "h": 0.002, "seed": seed, "tear_load": load, "peak_force": load + 10.0,
-                "work_per_length": work, "path_deviation": 1.0, "end": end}
+                "work_per_length": work, "path_deviation": 1.0, "tip_concentration": 1.2, "end": end}
 
     # the same three fabrics on two meshes: b tears at 100 N more on every seed
     rows = [row("a", -1, 9999.0, 99.0)]
@@ -191,6 +219,7 @@ def test_the_members_are_compared_as_means_and_paired_by_seed():
     assert a["tear_load"]["mean"] == pytest.approx(3050.0) and b["tear_load"]["mean"] == pytest.approx(3150.0)
     assert a["tear_load"]["ci95"] > 0
     assert a["torn_through"] == 1.0 and b["torn_through"] == pytest.approx(2 / 3)
+    assert a["tip_concentration"]["mean"] == pytest.approx(1.2)
     assert c["tear_load_spread"] == pytest.approx(100.0 / 3100.0)
     assert c["tear_load_agrees"] is True
     paired = c["paired"]["a - b"]
@@ -202,3 +231,22 @@ def test_the_members_are_compared_as_means_and_paired_by_seed():
     assert c["families"]["b"]["tear_load"]["n"] == 2 and c["paired"]["a - b"]["tear_load"]["n"] == 2
     assert "(n 2)" in format_members({"2 mm": c})
     assert compare_members([row("a", -1, 1.0, 1.0)]) == {}
+
+
+def test_a_table_of_an_older_version_is_rewritten_with_todays_columns(tmp_path):
+    from fabric_fenicsx.cli.tear import _done, _upgrade
+    from fabric_fenicsx.studies.tear_report import COLUMNS
+
+    table = tmp_path / "tear.csv"
+    old = [c for c in COLUMNS if c != "tip_concentration"]
+    row = {c: ("aligned" if c == "family" else "edge" if c == "notch" else "torn through" if c == "end" else "1.5")
+           for c in old}
+    with open(table, "w", newline="") as f:
+        w = csv.DictWriter(f, old)
+        w.writeheader()
+        w.writerow(row)
+    _upgrade(table, _done(table))
+    with open(table) as f:
+        assert tuple(next(csv.reader(f))) == COLUMNS
+    (again,) = _done(table)
+    assert again["tear_load"] == 1.5 and again["end"] == "torn through" and math.isnan(again["tip_concentration"])
