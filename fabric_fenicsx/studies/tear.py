@@ -43,8 +43,8 @@ import numpy as np
 FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack")
 """The failure rules a pull can use: the scenes' two (``material.failure``) and the yarn average."""
 
-__all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "tip_concentration", "path_angle",
-           "work_per_length", "TearTest"]
+__all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "near_tip_cells", "tip_concentration",
+           "path_angle", "work_per_length", "TearTest"]
 
 BROKEN_ALPHA = 0.5
 """A cell is broken once its warp alpha (the fraction of fibrils left) falls below this."""
@@ -178,10 +178,20 @@ def section_cells(centres: np.ndarray, setup: TearSetup) -> np.ndarray:
     return np.flatnonzero(far)
 
 
-def tip_concentration(forces: np.ndarray, beside_strains: np.ndarray, section_strains: np.ndarray,
+def near_tip_cells(centres: np.ndarray, slit: np.ndarray, setup: TearSetup, h: float) -> np.ndarray:
+    """The cells beyond the slit's tip (centre past it across the load, past either tip for a
+    centre notch) within max(:data:`SECTION_MARGIN`, 3 h) of it: where a tear from the slit has
+    its first cell (a cell the tear's length counts)."""
+    y1 = setup.slit_ends[1]
+    y = centres[:, 1] if setup.notch == "edge" else np.abs(centres[:, 1])
+    near = (y > y1) & (np.hypot(centres[:, 0], y - y1) <= max(SECTION_MARGIN, 3.0 * h))
+    return np.setdiff1d(np.flatnonzero(near), slit)
+
+
+def tip_concentration(forces: np.ndarray, tip_strains: np.ndarray, section_strains: np.ndarray,
                       tear_load: float, first: np.ndarray) -> float:
     """The strain concentration of the slit's tip as the mesh resolves it: the warp strain of the
-    tear's first cell (``first``, columns of ``beside_strains``) over the mean warp strain of the
+    tear's first cell (``first``, columns of ``tip_strains``) over the mean warp strain of the
     uncut section (``section_strains``), at the sample before the tear whose end force
     (``forces``) is nearest half the tear load (the largest over the first cells if several broke
     in one sample). Rows are samples before the tear. The thesis's membrane carries load only
@@ -193,7 +203,7 @@ def tip_concentration(forces: np.ndarray, beside_strains: np.ndarray, section_st
     if not (math.isfinite(tear_load) and forces.size and len(first)):
         return math.nan
     k = int(np.argmin(np.abs(forces - 0.5 * tear_load)))
-    return float(np.max(np.asarray(beside_strains)[k, first]) / section_strains[k])
+    return float(np.max(np.asarray(tip_strains)[k, first]) / section_strains[k])
 
 
 def path_angle(centres: np.ndarray) -> tuple[float, float]:
@@ -277,9 +287,8 @@ class TearTest:
         nodes = cell_corners(m.V, m.n_cells)
         incidence = csr_matrix((np.ones(nodes.size), (np.repeat(np.arange(m.n_cells), 4), nodes.ravel())))
         self._adjacent = (incidence @ incidence.T).tocsr()      # cells that share a node
-        beside = np.unique(self._adjacent[self.slit].indices)
-        self.beside = beside[~np.isin(beside, self.slit)]
-        """The cells sharing a node with the slit's: the tear's first cells are among them."""
+        self.near_tip = near_tip_cells(self.centres, self.slit, setup, self.h)
+        """The cells about the slit's tip, beyond it: the tear's first cells are among them."""
         self.section = section_cells(self.centres, setup)
 
     def _yarn_average(self):
@@ -389,7 +398,7 @@ class TearTest:
         t_max = 3.0 * (math.sqrt(1 + 2 * E_fail) - 1.0) * s.side / s.speed
         npc = m.n_points_per_cell
         history, peak, first, elsewhere = [], 0.0, None, None
-        tip_samples, concentration = [], math.nan    # (force, beside cells' and section's warp strains)
+        tip_samples, concentration = [], math.nan    # (force, near-tip cells' and section's warp strains)
         end = "time limit"
         while cd.time < t_max:
             cd.step(dt)
@@ -411,11 +420,11 @@ class TearTest:
             length = self.tear_length(torn)
             if first is None and length > 0.0:
                 f, b, sec = (np.array(x) for x in zip(*tip_samples)) if tip_samples else ([], [], [])
-                concentration = tip_concentration(f, b, sec, force, np.flatnonzero(np.isin(self.beside, torn)))
+                concentration = tip_concentration(f, b, sec, force, np.flatnonzero(np.isin(self.near_tip, torn)))
             elif first is None:
                 warp = material.E1.reshape(-1, npc).mean(axis=1)
                 intact = self.section[~broken[self.section]]   # a crack elsewhere is not the section
-                tip_samples.append((force, warp[self.beside], warp[intact].mean() if intact.size else math.nan))
+                tip_samples.append((force, warp[self.near_tip], warp[intact].mean() if intact.size else math.nan))
             e = material.energies()
             history.append((cd.time, force, length, e["damage_dissipation"] + e["erosion_energy"]))
             peak = max(peak, force)

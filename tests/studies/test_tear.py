@@ -11,8 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-from fabric_fenicsx.studies.tear import (SECTION_MARGIN, TearSetup, parse_family, path_angle, section_cells,
-                                         slit_cells, tip_concentration, work_per_length, yarn_deviation)
+from fabric_fenicsx.studies.tear import (SECTION_MARGIN, TearSetup, near_tip_cells, parse_family, path_angle,
+                                         section_cells, slit_cells, tip_concentration, work_per_length,
+                                         yarn_deviation)
 
 
 def _grid(n: int, side: float) -> np.ndarray:
@@ -79,6 +80,29 @@ def test_the_uncut_section_lies_beyond_the_slit_and_away_from_the_clamps(notch):
     # every cell that far out is taken: 20 columns (|x| <= 25 mm) of 17 rows (y >= -13 mm) beyond an
     # edge notch ending at -18 mm, of 2 x 8 rows (|y| >= 11 mm) beside a centred one
     assert cells.size == 20 * (17 if notch == "edge" else 16)
+
+
+@pytest.mark.parametrize("notch", ["edge", "centre"])
+def test_the_tears_first_cells_are_sought_beyond_the_slits_tip(notch):
+    setup = TearSetup(side=0.06, slit=0.012, notch=notch)
+    corners = _grid(24, 0.06)                                       # 2.5 mm cells
+    centres = corners.mean(axis=1)
+    slit = slit_cells(corners, setup)
+    cells = near_tip_cells(centres, slit, setup, 0.0025)
+    y1 = setup.slit_ends[1]
+    y = centres[cells, 1] if notch == "edge" else np.abs(centres[cells, 1])
+    assert cells.size > 0 and not np.isin(cells, slit).any()
+    assert y.min() > y1 and np.hypot(centres[cells, 0], y - y1).max() <= 3 * 0.0025
+    # the cells beside the slit, short of its tip, are not among them: a tear's length counts
+    # only cells past the tip
+    beside = (np.abs(centres[:, 0]) < 0.003) & ~np.isin(np.arange(centres.shape[0]), slit)
+    beside &= (centres[:, 1] < y1) if notch == "edge" else (np.abs(centres[:, 1]) < y1)
+    assert beside.any() and not np.isin(np.flatnonzero(beside), cells).any()
+    # the cell just past the tip in the slit's column (x from 0 to 2.5 mm; the slit lies a hair
+    # right of x = 0): there
+    column = np.flatnonzero((np.abs(centres[:, 0] - 0.00125) < 1e-4) & (centres[:, 1] > y1))
+    ahead = np.setdiff1d(column, slit)
+    assert ahead[np.argmin(centres[ahead, 1])] in cells
 
 
 def test_families_are_named_and_bad_ones_refused():
