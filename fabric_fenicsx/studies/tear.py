@@ -92,6 +92,12 @@ class TearSetup:
         a = self.side / 2
         return (-a, -a + self.slit) if self.notch == "edge" else (-self.slit / 2, self.slit / 2)
 
+    def across(self, y: np.ndarray) -> np.ndarray:
+        """Positions y (m) across the load as a tear from the slit runs: y for an edge notch, |y|
+        for a centred one (it runs both ways); a tear's cells lie past the tip where this exceeds
+        ``slit_ends[1]``."""
+        return y if self.notch == "edge" else np.abs(y)
+
     @property
     def ligament(self) -> float:
         """The length the tear can run (m): to the far edge (edge notch) or to one edge (centre)."""
@@ -173,7 +179,7 @@ def section_cells(centres: np.ndarray, setup: TearSetup) -> np.ndarray:
     (:func:`tip_concentration`): centres at least :data:`SECTION_MARGIN` beyond the slit's tip
     across the load (past both tips for a centre notch) and from the clamped edges."""
     y1 = setup.slit_ends[1]
-    y = centres[:, 1] if setup.notch == "edge" else np.abs(centres[:, 1])
+    y = setup.across(centres[:, 1])
     far = (y >= y1 + SECTION_MARGIN) & (np.abs(centres[:, 0]) <= setup.side / 2 - SECTION_MARGIN)
     return np.flatnonzero(far)
 
@@ -183,7 +189,7 @@ def near_tip_cells(centres: np.ndarray, slit: np.ndarray, setup: TearSetup, h: f
     centre notch) within max(:data:`SECTION_MARGIN`, 3 h) of it: where a tear from the slit has
     its first cell (a cell the tear's length counts)."""
     y1 = setup.slit_ends[1]
-    y = centres[:, 1] if setup.notch == "edge" else np.abs(centres[:, 1])
+    y = setup.across(centres[:, 1])
     near = (y > y1) & (np.hypot(centres[:, 0], y - y1) <= max(SECTION_MARGIN, 3.0 * h))
     return np.setdiff1d(np.flatnonzero(near), slit)
 
@@ -342,8 +348,7 @@ class TearTest:
     def tear_length(self, cells: np.ndarray) -> float:
         """How far the tear ``cells`` has run across the load beyond the slit's tip (m)."""
         y1 = self.setup.slit_ends[1]
-        y = self.centres[cells, 1]
-        return max(0.0, float(np.max(y if self.setup.notch == "edge" else np.abs(y), initial=-np.inf)) - y1)
+        return max(0.0, float(np.max(self.setup.across(self.centres[cells, 1]), initial=-np.inf)) - y1)
 
     def crack_away(self, rule, t: float, length: float) -> dict | None:
         """The first crack that the yarn-crack ``rule`` started of its own (a root) away from the
