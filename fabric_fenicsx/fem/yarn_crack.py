@@ -247,10 +247,12 @@ class YarnCrack:
                 continue
             cells = np.unique(cell_of[new])
             state, line = self._classified(i, cells)
-            tips = cells[state == TIP]
-            self.kind[i, tips], self.line[i, tips] = TIP, line[state == TIP]
+            tip = state == TIP
+            ready = self._tips_ready(i, cells[tip], surrogate, points, E1, E2, a_old)
+            tips, late = cells[tip][ready], cells[tip][~ready]
+            self.kind[i, tips], self.line[i, tips] = TIP, line[tip][ready]
             self._cracks_added(i, tips)
-            held = cells[state == UNCRACKED]
+            held = np.concatenate((cells[state == UNCRACKED], late))
             roots = cells[state == ROOT]
             if roots.size:
                 at = np.flatnonzero(np.isin(cell_of, roots))
@@ -278,6 +280,12 @@ class YarnCrack:
             redo.append(back)
         redo = np.unique(np.concatenate(redo)) if redo else np.zeros(0, np.int64)
         return b, redo
+
+    def _tips_ready(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
+        """Which of the cells ``tips`` (sorted), crossed by a crack's line of ``family`` and
+        damaged there by their own strains, may join the crack now (a mask): all of them here; a
+        rule that reads the tip otherwise (:mod:`fabric_fenicsx.fem.yarn_tip`) holds some back."""
+        return np.ones(len(tips), dtype=bool)
 
     def _one_per_neighbourhood(self, family: int, cells: np.ndarray) -> np.ndarray:
         """Of cells starting cracks of ``family`` in the same step, those not within the

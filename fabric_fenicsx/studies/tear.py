@@ -8,7 +8,8 @@ it crosses (``slit_cut = "cells"``) or by cutting their warp yarns only (``"warp
 the fill yarns along the slit kept, a crack band as a broken warp leaves it). The membrane, the
 reduced element with its hourglass control, the surrogate, the damping and the removal rules
 (deletion when both yarns are broken, erosion at ``erosion_strain``) are the impact scenes'; the
-failure rule is the thesis's or a candidate (``failure``: ``yarn_crack``, ``yarn_average``).
+failure rule is the thesis's or a candidate (``failure``: ``yarn_crack``, ``yarn_tip``,
+``yarn_average``).
 
 The panel is meshed with cells of one size ``h`` (the tear's tip meets the same cells all the
 way) in families that tell the cells' orientation from their shape:
@@ -40,8 +41,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack")
-"""The failure rules a pull can use: the scenes' two (``material.failure``) and the yarn average."""
+FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack", "yarn_tip")
+"""The failure rules a pull can use: the scenes' (``material.failure``) and the yarn average."""
+
+CRACK_RULES = ("yarn_crack", "yarn_tip")
+"""The rules that track cracks (:mod:`fabric_fenicsx.fem.yarn_crack`, :mod:`fabric_fenicsx.fem.yarn_tip`)."""
 
 __all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "near_tip_cells", "tip_concentration",
            "path_angle", "work_per_length", "TearTest"]
@@ -63,7 +67,7 @@ class TearSetup:
     dt_safety: float = 0.8
     erosion_strain: float = 1.0  # material.erosion_strain
     grips: str = "clamped"       # "clamped" (every component held) | "rollers" (the edges free along y)
-    failure: str = "thesis"      # "thesis" | "yarn_average" | "yarn_crack" (fabric_fenicsx.fem.yarn_*)
+    failure: str = "thesis"      # "thesis" | "yarn_average" | "yarn_crack" | "yarn_tip" (fabric_fenicsx.fem.yarn_*)
     failure_length: float = 0.0  # m: the yarn average's length (yarn_average only)
     failure_width: float = 0.0   # m: the yarn average's width across the yarn (0: one cell)
     slit_cut: str = "cells"      # "cells" (the slit's cells removed) | "warp" (their warp cut, alpha1 = 0)
@@ -308,11 +312,13 @@ class TearTest:
         return self._average
 
     def crack_rule(self, laws=None):
-        """The yarn-crack rule (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`) on this mesh with
-        the cell laws ``laws`` (None: the fabric's), the slit given as a crack of the warp."""
+        """The crack-tracking rule of this setup (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`,
+        or :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip` for ``yarn_tip``) on this mesh with the
+        cell laws ``laws`` (None: the fabric's), the slit given as a crack of the warp."""
         from fabric_fenicsx.fem.yarn_crack import YarnCrack
+        from fabric_fenicsx.fem.yarn_tip import YarnTip
 
-        rule = YarnCrack.on_cells(self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])), self.fabric,
+        rule = (YarnTip if self.setup.failure == "yarn_tip" else YarnCrack).on_cells(self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])), self.fabric,
                                   self.membrane.n_points_per_cell, laws, self.comm)
         rule.add_crack(self.slit, 0, 0.0)
         return rule
@@ -320,7 +326,7 @@ class TearTest:
     def damage_range(self, laws=None):
         """The damage range (:class:`~fabric_fenicsx.material.scatter.DamageRange`) the surrogate
         needs for this setup's failure rule with ``laws``, or None (the fabric's own law)."""
-        if self.setup.failure == "yarn_crack":
+        if self.setup.failure in CRACK_RULES:
             return self.crack_rule(laws).damage_range()
         if laws is None:
             return None
@@ -382,7 +388,7 @@ class TearTest:
         if s.failure == "yarn_average":
             material.damage_drive = self._yarn_average()
         rule = None
-        if s.failure == "yarn_crack":
+        if s.failure in CRACK_RULES:
             material.failure = rule = self.crack_rule(laws)
         for term in m.terms:
             if term.follows_integrity:
