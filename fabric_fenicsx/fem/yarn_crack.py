@@ -125,16 +125,17 @@ class YarnCrack:
         self._joined: list[np.ndarray] = []   # rows of CRACK_COLUMNS not yet handed out
 
     @classmethod
-    def on_cells(cls, corners, directions, fabric, points_per_cell: int = 1, laws=None, comm=None):
+    def on_cells(cls, corners, directions, fabric, points_per_cell: int = 1, laws=None, comm=None, **options):
         """The rule over cells whose points have the segment laws ``laws`` = (mu_crit, scale), each
-        (n_points, 2) (a strength scatter's field), or None (the fabric's law everywhere)."""
+        (n_points, 2) (a strength scatter's field), or None (the fabric's law everywhere);
+        ``options`` go to the class (a subclass's own)."""
         n = np.asarray(corners).shape[0] * int(points_per_cell)
         if laws is None:
             mu_crit = np.repeat(np.array([[fabric.warp.mu_crit], [fabric.fill.mu_crit]]), n, axis=1)
             scale = np.ones((2, n))
         else:
             mu_crit, scale = (np.asarray(x, float).T for x in laws)
-        return cls(corners, directions, fabric, mu_crit, scale, points_per_cell, comm=comm)
+        return cls(corners, directions, fabric, mu_crit, scale, points_per_cell, comm=comm, **options)
 
     def damage_range(self):
         """The lowest critical stretch per family the laws can take (a surrogate's table must hold
@@ -262,6 +263,7 @@ class YarnCrack:
                                                 critical_stretch=mu, softening_scale=sc)
                 full = np.stack((c1, c2))
                 started = np.unique(cell_of[at][full[i] < a_old[i, at]])
+                started = started[self._roots_ready(i, started, surrogate, points, E1, E2, a_old)]
                 started = self._one_per_neighbourhood(i, started)
                 self.kind[i, started], self.line[i, started] = ROOT, self.at[i, started]
                 self._cracks_added(i, started)
@@ -286,6 +288,11 @@ class YarnCrack:
         damaged there by their own strains, may join the crack now (a mask): all of them here; a
         rule that reads the tip otherwise (:mod:`fabric_fenicsx.fem.yarn_tip`) holds some back."""
         return np.ones(len(tips), dtype=bool)
+
+    def _roots_ready(self, family: int, roots, surrogate, points, E1, E2, a_old) -> np.ndarray:
+        """Which of the cells ``roots`` (sorted), far from any crack of ``family`` and damaged by
+        their own strains at the segment's law, may start a crack now (a mask): all of them here."""
+        return np.ones(len(roots), dtype=bool)
 
     def _one_per_neighbourhood(self, family: int, cells: np.ndarray) -> np.ndarray:
         """Of cells starting cracks of ``family`` in the same step, those not within the

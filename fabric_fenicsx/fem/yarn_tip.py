@@ -55,8 +55,11 @@ class YarnTip(YarnCrack):
     """The yarn crack whose tips join only when their yarn, read along it, reaches the segment's
     law (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
-    def __init__(self, corners, directions, *args, **kwargs):
+    def __init__(self, corners, directions, *args, roots: bool = False, **kwargs):
         super().__init__(corners, directions, *args, **kwargs)
+        self.roots = bool(roots)
+        """Whether a crack's start (a root) also waits for its yarn (``yarn_read``), not only a tip."""
+        self.roots_held = np.zeros(2, np.int64)
         from fabric_fenicsx.impact.removal_log import polygon_areas
 
         self.directions = np.array([np.asarray(d, float) for d in directions])
@@ -82,6 +85,20 @@ class YarnTip(YarnCrack):
         return np.where(count > 0, median, E_cell[cells])
 
     def _tips_ready(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
+        ready = self._yarn_reaches_segment(family, tips, surrogate, points, E1, E2, a_old)
+        self.tips_held[family] += int(np.count_nonzero(~ready))
+        return ready
+
+    def _roots_ready(self, family: int, roots, surrogate, points, E1, E2, a_old) -> np.ndarray:
+        if not self.roots:
+            return np.ones(len(roots), dtype=bool)
+        ready = self._yarn_reaches_segment(family, roots, surrogate, points, E1, E2, a_old)
+        self.roots_held[family] += int(np.count_nonzero(~ready))
+        return ready
+
+    def _yarn_reaches_segment(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
+        """Mask of the cells ``tips`` (sorted) whose yarn strain Ebar_i, with the cell's own strain
+        of the other family, damages family i at the segment's law."""
         if len(tips) == 0:
             return np.zeros(0, dtype=bool)
         n = self.centres.shape[0]
@@ -99,9 +116,7 @@ class YarnTip(YarnCrack):
         _, _, c1, c2 = surrogate.update(e[0], e[1], a_old[0, at], a_old[1, at],
                                         critical_stretch=mu, softening_scale=sc)
         damaged = (c1, c2)[family] < a_old[family, at]
-        ready = np.isin(tips, cell_of[at][damaged])
-        self.tips_held[family] += int(np.count_nonzero(~ready))
-        return ready
+        return np.isin(tips, cell_of[at][damaged])
 
     def summary(self) -> dict:
         """:meth:`YarnCrack.summary` with, per family, ``tips_held``: the cell-steps a cell on a

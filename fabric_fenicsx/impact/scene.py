@@ -170,13 +170,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "erosion_strain": Key(1.0, number(0.0, lo_open=True),
                               "Green strain of a yarn direction beyond which a cell is eroded "
                               "(no longer a unit cell; see docs/impact_model.md)"),
-        "failure": Key("thesis", choice("thesis", "yarn_crack", "yarn_tip"),
+        "failure": Key("thesis", choice("thesis", "yarn_crack", "yarn_tip", "yarn_strain"),
                        "failure rule (fabric_fenicsx.impact.setup.FAILURE_RULES): thesis = every point "
                        "damages by Eq. 2-25 on its own strains; yarn_crack = a broken yarn family tears "
                        "along the other family with one yarn segment's energy "
                        "(fabric_fenicsx.fem.yarn_crack; one rank, damage on); yarn_tip = the yarn crack "
                        "whose tip runs on when its yarn, read along it, reaches the segment's strength "
-                       "(fabric_fenicsx.fem.yarn_tip)"),
+                       "(fabric_fenicsx.fem.yarn_tip); yarn_strain = the same for a crack's start too"),
         "surrogate_cache": Key("", optional_text,
                                "directory of the surrogate's tile cache (\"\" = its default)"),
         "scatter": Key("none", choice("none", "fibrils", "weibull"),

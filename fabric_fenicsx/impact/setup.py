@@ -110,8 +110,8 @@ def build_strength_field(scene: Scene, fabric: Fabric, membrane, comm):
 
 def _yarn_crack(scene: Scene, fabric: Fabric, membrane, laws, comm):
     """The yarn-crack rule (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`, or for ``yarn_tip``
-    :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`) on the membrane's cells, over the points'
-    segment laws ``laws`` (None: the fabric's)."""
+    and ``yarn_strain`` :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`) on the membrane's cells,
+    over the points' segment laws ``laws`` (None: the fabric's)."""
     from fabric_fenicsx.fem.membrane import yarn_directions
     from fabric_fenicsx.fem.yarn_crack import YarnCrack
     from fabric_fenicsx.fem.yarn_tip import YarnTip
@@ -124,11 +124,14 @@ def _yarn_crack(scene: Scene, fabric: Fabric, membrane, laws, comm):
         return None
     X = membrane.V.tabulate_dof_coordinates()[:, :2]
     corners = X[cell_corners(membrane.V, membrane.n_cells)]
-    return (YarnTip if rule == "yarn_tip" else YarnCrack).on_cells(
-        corners, yarn_directions(membrane.angle), fabric, membrane.n_points_per_cell, laws, comm)
+    directions = yarn_directions(membrane.angle)
+    if rule == "yarn_crack":
+        return YarnCrack.on_cells(corners, directions, fabric, membrane.n_points_per_cell, laws, comm)
+    return YarnTip.on_cells(corners, directions, fabric, membrane.n_points_per_cell, laws, comm,
+                            roots=rule == "yarn_strain")
 
 
-FAILURE_RULES = {"thesis": None, "yarn_crack": _yarn_crack, "yarn_tip": _yarn_crack}
+FAILURE_RULES = {"thesis": None, "yarn_crack": _yarn_crack, "yarn_tip": _yarn_crack, "yarn_strain": _yarn_crack}
 """``material.failure`` -> a builder (scene, fabric, membrane, laws, comm) -> the rule that the
 material's ``failure`` takes (None: each point's own law, the thesis's rule)."""
 

@@ -41,10 +41,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack", "yarn_tip")
+FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack", "yarn_tip", "yarn_strain")
 """The failure rules a pull can use: the scenes' (``material.failure``) and the yarn average."""
 
-CRACK_RULES = ("yarn_crack", "yarn_tip")
+CRACK_RULES = ("yarn_crack", "yarn_tip", "yarn_strain")
 """The rules that track cracks (:mod:`fabric_fenicsx.fem.yarn_crack`, :mod:`fabric_fenicsx.fem.yarn_tip`)."""
 
 __all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "near_tip_cells", "tip_concentration",
@@ -67,7 +67,7 @@ class TearSetup:
     dt_safety: float = 0.8
     erosion_strain: float = 1.0  # material.erosion_strain
     grips: str = "clamped"       # "clamped" (every component held) | "rollers" (the edges free along y)
-    failure: str = "thesis"      # "thesis" | "yarn_average" | "yarn_crack" | "yarn_tip" (fabric_fenicsx.fem.yarn_*)
+    failure: str = "thesis"      # "thesis" | "yarn_average" | "yarn_crack" | "yarn_tip" | "yarn_strain"
     failure_length: float = 0.0  # m: the yarn average's length (yarn_average only)
     failure_width: float = 0.0   # m: the yarn average's width across the yarn (0: one cell)
     slit_cut: str = "cells"      # "cells" (the slit's cells removed) | "warp" (their warp cut, alpha1 = 0)
@@ -318,8 +318,10 @@ class TearTest:
         from fabric_fenicsx.fem.yarn_crack import YarnCrack
         from fabric_fenicsx.fem.yarn_tip import YarnTip
 
-        rule = (YarnTip if self.setup.failure == "yarn_tip" else YarnCrack).on_cells(self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])), self.fabric,
-                                  self.membrane.n_points_per_cell, laws, self.comm)
+        kind, options = (YarnCrack, {}) if self.setup.failure == "yarn_crack" else \
+            (YarnTip, {"roots": self.setup.failure == "yarn_strain"})
+        rule = kind.on_cells(self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])), self.fabric,
+                             self.membrane.n_points_per_cell, laws, self.comm, **options)
         rule.add_crack(self.slit, 0, 0.0)
         return rule
 

@@ -1,6 +1,8 @@
 """The yarn-crack failure rule (fabric_fenicsx.fem.yarn_crack): its laws carry one segment's
 energy over each cell's extent along the yarn, and a new damage is kept on a crack's line, taken
-back beside it, and starts a crack of its own only far from any and at the segment's strength."""
+back beside it, and starts a crack of its own only far from any and at the segment's strength;
+with a tip that reads its yarn (fabric_fenicsx.fem.yarn_tip), a cell on a crack's line joins it
+only when the median strain of the other cells on its yarn reaches the segment's law."""
 
 import math
 
@@ -8,6 +10,7 @@ import numpy as np
 import pytest
 
 from fabric_fenicsx.fem.yarn_crack import GIVEN, ROOT, TIP, UNCRACKED, YarnCrack, cell_extents
+from fabric_fenicsx.fem.yarn_tip import YarnTip, grouped_median
 from fabric_fenicsx.material.crack_energy import breaking_work, softening_moments
 from fabric_fenicsx.material.fabric import zylon_as
 
@@ -146,3 +149,74 @@ def test_the_stored_classification_is_what_classifying_again_gives_as_cracks_gro
         assert np.array_equal(stored[0], fresh[0]), step
         assert np.array_equal(stored[1], fresh[1]), step
     assert added > 5       # cracks did grow (tips and roots) while the states were reused
+
+
+H, N = 2e-3, 15
+
+
+def cell(i: int, j: int) -> int:
+    return i * N + j
+
+
+def test_grouped_median_is_each_groups_median_and_nan_where_empty():
+    rng = np.random.default_rng(3)
+    values, group = rng.normal(size=200), rng.integers(0, 7, size=200)
+    group[group == 4] = 5                                  # group 4 empty
+    median, count = grouped_median(values, group, 8)
+    for g in range(8):
+        mine = values[group == g]
+        assert count[g] == mine.size
+        assert (np.isnan(median[g]) if mine.size == 0 else median[g] == pytest.approx(np.median(mine)))
+
+
+def _slit_rule(kind=YarnTip):
+    rule = kind.on_cells(_grid(N, H), (X, Y), zylon_as())
+    rule.add_crack([cell(7, 0), cell(7, 1), cell(7, 2)], 0, 7.5 * H)   # a slit across the warp, column 7
+    return rule
+
+
+def test_a_cells_yarn_strain_is_the_median_along_its_row_within_the_neighbourhood():
+    rule = _slit_rule()
+    E1 = np.arange(N * N, dtype=float)                     # every cell its own value
+    live = np.ones(N * N, dtype=bool)
+    live[cell(5, 3)] = False                               # removed: not read
+    reach = int(rule.radius[0] // H)                       # 3 diameters of a 2 mm square: 4 cells
+    assert reach == 4
+    row = [cell(i, 3) for i in range(7 - reach, 7 + reach + 1) if i not in (5, 7)]
+    assert rule.yarn_strain(0, np.array([cell(7, 3)]), E1, live)[0] == pytest.approx(np.median(E1[row]))
+    # along the fill (family 1) the band is column 7: the slit's cells, cut in the warp only, are
+    # read; a cell whose fill is cracked is not
+    rule.add_crack([cell(7, 6)], 1, 6.5 * H)
+    column = [cell(7, j) for j in range(0, 3 + reach + 1) if j not in (3, 6)]
+    assert rule.yarn_strain(1, np.array([cell(7, 3)]), E1, live)[0] == pytest.approx(np.median(E1[column]))
+
+
+def _tip_step(rule, neighbours: float):
+    """One damage update with the tip cell (7, 3) strained past the segment's law and its row at
+    ``neighbours`` (a fraction of the segment's critical strain)."""
+    points = np.arange(N * N)
+    full = rule.base[0][0, 0] - 1.0
+    E1 = np.full(N * N, 0.5 * full)
+    E1[[cell(i, 3) for i in range(N)]] = neighbours * full
+    E1[cell(7, 3)] = 1.25 * full                           # the cells' concentration at the tip
+    a_old = np.ones((2, N * N))
+    surrogate = ThresholdSurrogate()
+    b_new = np.stack(surrogate.update(E1, np.zeros(N * N), a_old[0], a_old[1], *rule.laws(points).values())[2:])
+    return rule.admit(surrogate, points, E1, np.zeros(N * N), a_old, b_new)
+
+
+def test_a_tip_whose_yarn_is_short_of_its_strength_waits_where_the_yarn_crack_would_let_it_go():
+    waiting = _slit_rule()
+    b, redo = _tip_step(waiting, 0.95)
+    assert b[0, cell(7, 3)] == 1.0 and waiting.kind[0, cell(7, 3)] == UNCRACKED and cell(7, 3) in redo
+    assert waiting.summary()["warp"]["tips_held"] == 1
+    crack = _slit_rule(YarnCrack)
+    b, _ = _tip_step(crack, 0.95)
+    assert b[0, cell(7, 3)] == 0.5 and crack.kind[0, cell(7, 3)] == TIP
+
+
+def test_a_tip_whose_yarn_reaches_its_strength_joins_the_crack():
+    rule = _slit_rule()
+    b, _ = _tip_step(rule, 1.02)
+    assert b[0, cell(7, 3)] == 0.5 and rule.kind[0, cell(7, 3)] == TIP and rule.line[0, cell(7, 3)] == 7.5 * H
+    assert rule.summary()["warp"]["tips_held"] == 0
