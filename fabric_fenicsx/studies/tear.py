@@ -9,7 +9,7 @@ the fill yarns along the slit kept, a crack band as a broken warp leaves it). Th
 reduced element with its hourglass control, the surrogate, the damping and the removal rules
 (deletion when both yarns are broken, erosion at ``erosion_strain``) are the impact scenes'; the
 failure rule is the thesis's or a candidate (``failure``: ``yarn_crack``, ``yarn_tip``,
-``yarn_average``).
+``yarn_strain``, ``yarn_average``).
 
 The panel is meshed with cells of one size ``h`` (the tear's tip meets the same cells all the
 way) in families that tell the cells' orientation from their shape:
@@ -313,8 +313,9 @@ class TearTest:
 
     def crack_rule(self, laws=None):
         """The crack-tracking rule of this setup (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`,
-        or :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip` for ``yarn_tip``) on this mesh with the
-        cell laws ``laws`` (None: the fabric's), the slit given as a crack of the warp."""
+        or :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip` for ``yarn_tip`` and ``yarn_strain``) on
+        this mesh with the cell laws ``laws`` (None: the fabric's), the slit given as a crack of
+        the warp."""
         from fabric_fenicsx.fem.yarn_crack import YarnCrack
         from fabric_fenicsx.fem.yarn_tip import YarnTip
 

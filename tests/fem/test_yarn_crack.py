@@ -220,3 +220,30 @@ def test_a_tip_whose_yarn_reaches_its_strength_joins_the_crack():
     b, _ = _tip_step(rule, 1.02)
     assert b[0, cell(7, 3)] == 0.5 and rule.kind[0, cell(7, 3)] == TIP and rule.line[0, cell(7, 3)] == 7.5 * H
     assert rule.summary()["warp"]["tips_held"] == 0
+
+
+def _root_step(rule, neighbours: float):
+    """One damage update of a fabric without cracks: cell (7, 7) strained past the segment's law,
+    its row at ``neighbours`` of the segment's critical strain."""
+    points = np.arange(N * N)
+    full = rule.base[0][0, 0] - 1.0
+    E1 = np.full(N * N, 0.5 * full)
+    E1[[cell(i, 7) for i in range(N)]] = neighbours * full
+    E1[cell(7, 7)] = 1.25 * full
+    a_old = np.ones((2, N * N))
+    surrogate = ThresholdSurrogate()
+    b_new = np.stack(surrogate.update(E1, np.zeros(N * N), a_old[0], a_old[1], *rule.laws(points).values())[2:])
+    return rule.admit(surrogate, points, E1, np.zeros(N * N), a_old, b_new)
+
+
+def test_a_cracks_start_reads_its_yarn_only_when_the_rule_says_so():
+    tip_only = YarnTip.on_cells(_grid(N, H), (X, Y), zylon_as())
+    b, _ = _root_step(tip_only, 0.95)
+    assert b[0, cell(7, 7)] == 0.5 and tip_only.kind[0, cell(7, 7)] == ROOT
+    both = YarnTip.on_cells(_grid(N, H), (X, Y), zylon_as(), roots=True)
+    b, _ = _root_step(both, 0.95)                          # its yarn short of the segment's law
+    assert b[0, cell(7, 7)] == 1.0 and np.all(both.kind == UNCRACKED) and both.roots_held[0] == 1
+    both = YarnTip.on_cells(_grid(N, H), (X, Y), zylon_as(), roots=True)
+    _root_step(both, 1.02)                                 # the whole yarn past it: a crack starts on it
+    started = np.flatnonzero(both.kind[0] == ROOT)
+    assert started.size >= 1 and np.all(started % N == 7) and both.roots_held[0] == 0

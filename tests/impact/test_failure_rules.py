@@ -1,6 +1,7 @@
 """The scene's failure rule (``material.failure``, fabric_fenicsx.impact.setup.FAILURE_RULES):
 a bad name is refused; the yarn crack runs an impact whose removed cells lie on lines along the
-fill, says what its cracks did in summary.json and cracks.csv, and refuses more than one rank in one line."""
+fill, says what its cracks did in summary.json and cracks.csv, and refuses more than one rank in one line;
+the crack that reads its yarn (yarn_strain) holds back its starts and tips in an impact."""
 
 import csv
 import json
@@ -57,6 +58,26 @@ def test_a_yarn_crack_impact_tears_along_the_fill(tmp_path):
     # each warp tip lies on the line of a warp root's crack (x . d_warp = y here: warp along y)
     roots = {float(r["line_m"]) for r in joined if r["family"] == "warp" and r["kind"] == "root"}
     assert all(float(r["line_m"]) in roots for r in joined if r["family"] == "warp" and r["kind"] == "tip")
+
+
+def test_a_crack_that_reads_its_yarn_holds_back_its_tips_and_starts_in_an_impact(tmp_path):
+    """``yarn_strain`` (fabric_fenicsx.fem.yarn_tip with its roots reading the yarn too), Y90 at
+    57.3 m/s, 4 mm, to 1.2 ms: cracks start and run along the fill, and both a crack's start and
+    its tips waited for their yarns at times (measured: 3 roots, 12 tips, 12566 tip cell-steps held)."""
+    out = tmp_path / "run"
+    run = subprocess.run([*BASE[:-1], "material.failure=yarn_strain", "--set", "projectile.velocity=57.3",
+                          "--set", "mesh.h_centre=0.004", "--set", "run.t_end=0.0012", "--out", str(out)],
+                         capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    warp = summary["failure"]["cracks"]["warp"]
+    assert summary["failure"]["rule"] == "yarn_strain"
+    assert warp["roots"] >= 1 and warp["tips"] >= 1 and warp["tips_held"] > 0 and warp["roots_held"] > 0
+    assert warp["held"] >= warp["tips_held"] + warp["roots_held"]
+    with open(out / "cracks.csv") as f:
+        joined = [r for r in csv.DictReader(f) if r["family"] == "warp"]
+    roots = {float(r["line_m"]) for r in joined if r["kind"] == "root"}
+    assert all(float(r["line_m"]) in roots for r in joined if r["kind"] == "tip")
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="needs mpirun")
