@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabric_fenicsx.fem.polygons import polygon_areas
 from fabric_fenicsx.fem.yarn_crack import UNCRACKED, YarnCrack
 
 __all__ = ["YarnTip", "grouped_median"]
@@ -65,8 +66,6 @@ class YarnTip(YarnCrack):
         self.roots = bool(roots)
         """Whether a crack's start (a root) also waits for its yarn (``yarn_strain``), not only a tip."""
         self.roots_held = np.zeros(2, np.int64)
-        from fabric_fenicsx.impact.removal_log import polygon_areas
-
         self.directions = np.array([np.asarray(d, float) for d in directions])
         self.width = np.sqrt(polygon_areas(np.asarray(corners, float)))
         self.tips_held = np.zeros(2, np.int64)   # cell-steps a tip waited for its yarn, per family

@@ -23,9 +23,9 @@ from numba import njit
 from petsc4py import PETSc
 
 from fabric_fenicsx.fem.membrane import yarn_directions
+from fabric_fenicsx.fem.polygons import polygon_centroids
 from fabric_fenicsx.impact.output import cell_corners
-from fabric_fenicsx.impact.removal_log import (REMOVED_CELL_COLUMNS, chords_through_centroid, polygon_centroids,
-                                              removal_records)
+from fabric_fenicsx.impact.removal_log import REMOVED_CELL_COLUMNS, chords_through_centroid, removal_records
 
 __all__ = ["CellRemoval"]
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabric_fenicsx.fem.polygons import polygon_areas, polygon_centroids
+
 __all__ = ["REMOVED_CELL_COLUMNS", "RULES", "BROKEN_BELOW", "FAMILY_STATES", "polygon_centroids",
            "chords_through_centroid", "corner_extents", "family_states", "removal_records",
            "removal_statistics", "polygon_areas"]
@@ -49,22 +51,6 @@ below this (more than half of the yarn's strength lost): the family states of
 FAMILY_STATES = ("warp_only", "fill_only", "both", "neither")
 """The yarn families broken (alpha_i < :data:`BROKEN_BELOW`) in a removed cell."""
 
-
-
-def polygon_areas(corners: np.ndarray) -> np.ndarray:
-    """Areas of simple polygons (corners in perimeter order, either sense), shape (n, k, 2) ->
-    (n,): the shoelace formula."""
-    p, q = corners, np.roll(corners, -1, axis=1)
-    return 0.5 * np.abs((p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1]).sum(axis=1))
-
-
-def polygon_centroids(corners: np.ndarray) -> np.ndarray:
-    """Area centroids of simple polygons (corners in perimeter order, either sense), shape
-    (n, k, 2) -> (n, 2): the shoelace formula, c = sum (p_j + p_j+1) (p_j x p_j+1) / (6 A)."""
-    p, q = corners, np.roll(corners, -1, axis=1)
-    cross = p[..., 0] * q[..., 1] - q[..., 0] * p[..., 1]
-    area = 0.5 * cross.sum(axis=1)
-    return ((p + q) * cross[..., None]).sum(axis=1) / (6.0 * area[:, None])
 
 
 def chords_through_centroid(corners: np.ndarray, direction: np.ndarray,

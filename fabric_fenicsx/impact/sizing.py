@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fabric_fenicsx.impact.removal_log import polygon_areas
+from fabric_fenicsx.fem.polygons import polygon_areas
 from fabric_fenicsx.impact.scene import Scene, SceneError
 
 __all__ = ["Estimate", "estimate", "check_size", "free_memory", "BASE_BYTES", "CELL_BYTES",

@@ -305,7 +305,7 @@ class TearTest:
         """The driving strains of the yarn-average rule on this mesh (built once)."""
         if getattr(self, "_average", None) is None:
             from fabric_fenicsx.fem.yarn_average import YarnAverage
-            from fabric_fenicsx.impact.removal_log import polygon_areas
+            from fabric_fenicsx.fem.polygons import polygon_areas
 
             self._average = YarnAverage(self.centres, polygon_areas(self.corners), (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
                                         self.setup.failure_length, self.comm, self.setup.failure_width)
