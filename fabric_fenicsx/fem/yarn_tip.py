@@ -65,10 +65,10 @@ class YarnTip(YarnCrack):
         super().__init__(corners, directions, *args, **kwargs)
         self.roots = bool(roots)
         """Whether a crack's start (a root) also waits for its yarn (``yarn_strain``), not only a tip."""
-        self.roots_held = np.zeros(2, np.int64)
         self.directions = np.array([np.asarray(d, float) for d in directions])
         self.width = np.sqrt(polygon_areas(np.asarray(corners, float)))
-        self.tips_held = np.zeros(2, np.int64)   # cell-steps a tip waited for its yarn, per family
+        self.tips_held = np.zeros(2, np.int64)    # cell-steps a tip waited for its yarn, per family
+        self.roots_held = np.zeros(2, np.int64)   # the same for a crack's start (with ``roots``)
 
     def yarn_strain(self, family: int, cells: np.ndarray, E_cell: np.ndarray, live: np.ndarray) -> np.ndarray:
         """Ebar_i of the module docstring for ``cells``, from the cells' strains ``E_cell`` of
@@ -100,10 +100,10 @@ class YarnTip(YarnCrack):
         self.roots_held[family] += int(np.count_nonzero(~ready))
         return ready
 
-    def _yarn_reaches_segment(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
-        """Mask of the cells ``tips`` (sorted) whose yarn strain Ebar_i, with the cell's own strain
+    def _yarn_reaches_segment(self, family: int, cells, surrogate, points, E1, E2, a_old) -> np.ndarray:
+        """Mask of ``cells`` (sorted) whose yarn strain Ebar_i, with the cell's own strain
         of the other family, damages family i at the segment's law."""
-        if len(tips) == 0:
+        if len(cells) == 0:
             return np.zeros(0, dtype=bool)
         n = self.centres.shape[0]
         cell_of = points // self.npc
@@ -111,16 +111,16 @@ class YarnTip(YarnCrack):
         live = count > 0
         E = (E1, E2)
         E_cell = np.bincount(cell_of, weights=E[family], minlength=n) / np.maximum(count, 1)
-        far = self.yarn_strain(family, tips, E_cell, live)
-        at = np.flatnonzero(np.isin(cell_of, tips))
+        far = self.yarn_strain(family, cells, E_cell, live)
+        at = np.flatnonzero(np.isin(cell_of, cells))
         e = [np.array(E1[at], float), np.array(E2[at], float)]
-        e[family] = far[np.searchsorted(tips, cell_of[at])]
+        e[family] = far[np.searchsorted(cells, cell_of[at])]
         mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
         mu[family], sc[family] = self.base[0][family, points[at]], self.base[1][family, points[at]]
         _, _, c1, c2 = surrogate.update(e[0], e[1], a_old[0, at], a_old[1, at],
                                         critical_stretch=mu, softening_scale=sc)
         damaged = (c1, c2)[family] < a_old[family, at]
-        return np.isin(tips, cell_of[at][damaged])
+        return np.isin(cells, cell_of[at][damaged])
 
     def summary(self) -> dict:
         """:meth:`YarnCrack.summary` with, per family, ``tips_held``: the cell-steps a cell on a
