@@ -209,15 +209,20 @@ class YarnCrack:
             self._stale[family, stale] = False
         return self._state[family, cells], self._state_line[family, cells].copy()
 
+    def neighbourhoods(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(other, owner): the cells within each of ``cells``' radius (itself included), flat, and
+        the position in ``cells`` whose neighbourhood each belongs to."""
+        near = self.tree.query_ball_point(self.centres[cells], self.radius[cells])
+        sizes = np.fromiter(map(len, near), np.int64, cells.size)
+        other = np.fromiter(chain.from_iterable(near), np.int64, int(sizes.sum()))
+        return other, np.repeat(np.arange(cells.size), sizes)
+
     def _classify(self, family: int, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(state, line) of candidate ``cells`` against the cracks of ``family`` now: TIP with the
         line that crosses it (the nearest such cell's), UNCRACKED where cracked cells are near but
         none crosses it (held), ROOT where none is near (a crack of its own if the segment's law
         damages it)."""
-        near = self.tree.query_ball_point(self.centres[cells], self.radius[cells])
-        sizes = np.fromiter(map(len, near), np.int64, cells.size)
-        other = np.fromiter(chain.from_iterable(near), np.int64, int(sizes.sum()))
-        owner = np.repeat(np.arange(cells.size), sizes)
+        other, owner = self.neighbourhoods(cells)
         cracked = self.kind[family, other] != UNCRACKED
         other, owner = other[cracked], owner[cracked]
         state = np.where(np.bincount(owner, minlength=cells.size) > 0, UNCRACKED, ROOT).astype(np.int8)

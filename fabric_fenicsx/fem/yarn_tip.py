@@ -39,7 +39,7 @@ import numpy as np
 from fabric_fenicsx.fem.polygons import polygon_areas
 from fabric_fenicsx.fem.yarn_crack import UNCRACKED, YarnCrack
 
-__all__ = ["YarnTip", "grouped_median"]
+__all__ = ["YarnTip", "grouped_median", "CRACK_RULES", "crack_rule_on_cells"]
 
 
 def grouped_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
@@ -74,12 +74,7 @@ class YarnTip(YarnCrack):
         """Ebar_i of the module docstring for ``cells``, from the cells' strains ``E_cell`` of
         ``family`` (n_cells,) and the mask of live cells ``live``; a cell's own strain where its
         band holds no other cell."""
-        from itertools import chain
-
-        near = self.tree.query_ball_point(self.centres[cells], self.radius[cells])
-        sizes = np.fromiter(map(len, near), np.int64, cells.size)
-        other = np.fromiter(chain.from_iterable(near), np.int64, int(sizes.sum()))
-        owner = np.repeat(np.arange(cells.size), sizes)
+        other, owner = self.neighbourhoods(cells)
         d = self.centres[other] - self.centres[cells[owner]]
         t = self.directions[family]
         along, across = d @ t, d @ np.array([-t[1], t[0]])
@@ -131,3 +126,15 @@ class YarnTip(YarnCrack):
             out[name]["tips_held"] = int(self.tips_held[i])
             out[name]["roots_held"] = int(self.roots_held[i])
         return out
+
+
+CRACK_RULES = {"yarn_crack": (YarnCrack, {}), "yarn_tip": (YarnTip, {}), "yarn_strain": (YarnTip, {"roots": True})}
+"""The crack-tracking failure rules by name (``material.failure``, ``study tear --failure``): class
+and options."""
+
+
+def crack_rule_on_cells(name: str, corners, directions, fabric, points_per_cell: int = 1, laws=None, comm=None):
+    """The crack-tracking rule ``name`` (:data:`CRACK_RULES`) over cells, as
+    :meth:`YarnCrack.on_cells <fabric_fenicsx.fem.yarn_crack.YarnCrack.on_cells>`."""
+    kind, options = CRACK_RULES[name]
+    return kind.on_cells(corners, directions, fabric, points_per_cell, laws, comm, **options)

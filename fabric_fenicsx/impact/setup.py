@@ -8,6 +8,7 @@ from fabric_fenicsx.fem.mesh import BOTTOM, LEFT, RIGHT, TOP, MeshSpec, aligned_
 from fabric_fenicsx.fem.mesh_file import read_square_msh
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
 from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear, MembraneTerm
+from fabric_fenicsx.fem.yarn_tip import CRACK_RULES, crack_rule_on_cells
 from fabric_fenicsx.impact.output import cell_corners
 from fabric_fenicsx.impact.scene import Scene, SceneError, load_fabric
 from fabric_fenicsx.impact.term_specs import build_scene_terms
@@ -113,8 +114,6 @@ def _yarn_crack(scene: Scene, fabric: Fabric, membrane, laws, comm):
     and ``yarn_strain`` :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`) on the membrane's cells,
     over the points' segment laws ``laws`` (None: the fabric's)."""
     from fabric_fenicsx.fem.membrane import yarn_directions
-    from fabric_fenicsx.fem.yarn_crack import YarnCrack
-    from fabric_fenicsx.fem.yarn_tip import YarnTip
 
     rule = scene.material.failure
     if comm.size > 1:
@@ -124,14 +123,11 @@ def _yarn_crack(scene: Scene, fabric: Fabric, membrane, laws, comm):
         return None
     X = membrane.V.tabulate_dof_coordinates()[:, :2]
     corners = X[cell_corners(membrane.V, membrane.n_cells)]
-    directions = yarn_directions(membrane.angle)
-    if rule == "yarn_crack":
-        return YarnCrack.on_cells(corners, directions, fabric, membrane.n_points_per_cell, laws, comm)
-    return YarnTip.on_cells(corners, directions, fabric, membrane.n_points_per_cell, laws, comm,
-                            roots=rule == "yarn_strain")
+    return crack_rule_on_cells(rule, corners, yarn_directions(membrane.angle), fabric,
+                               membrane.n_points_per_cell, laws, comm)
 
 
-FAILURE_RULES = {"thesis": None, "yarn_crack": _yarn_crack, "yarn_tip": _yarn_crack, "yarn_strain": _yarn_crack}
+FAILURE_RULES = {"thesis": None, **{name: _yarn_crack for name in CRACK_RULES}}
 """``material.failure`` -> a builder (scene, fabric, membrane, laws, comm) -> the rule that the
 material's ``failure`` takes (None: each point's own law, the thesis's rule)."""
 

@@ -41,11 +41,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-FAILURE_RULES = ("thesis", "yarn_average", "yarn_crack", "yarn_tip", "yarn_strain")
-"""The failure rules a pull can use: the scenes' (``material.failure``) and the yarn average."""
+from fabric_fenicsx.fem.yarn_tip import CRACK_RULES, crack_rule_on_cells
 
-CRACK_RULES = ("yarn_crack", "yarn_tip", "yarn_strain")
-"""The rules that track cracks (:mod:`fabric_fenicsx.fem.yarn_crack`, :mod:`fabric_fenicsx.fem.yarn_tip`)."""
+FAILURE_RULES = ("thesis", "yarn_average", *CRACK_RULES)
+"""The failure rules a pull can use: the scenes' (``material.failure``) and the yarn average."""
 
 __all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "near_tip_cells", "tip_concentration",
            "path_angle", "work_per_length", "TearTest"]
@@ -316,13 +315,8 @@ class TearTest:
         or :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip` for ``yarn_tip`` and ``yarn_strain``) on
         this mesh with the cell laws ``laws`` (None: the fabric's), the slit given as a crack of
         the warp."""
-        from fabric_fenicsx.fem.yarn_crack import YarnCrack
-        from fabric_fenicsx.fem.yarn_tip import YarnTip
-
-        kind, options = (YarnCrack, {}) if self.setup.failure == "yarn_crack" else \
-            (YarnTip, {"roots": self.setup.failure == "yarn_strain"})
-        rule = kind.on_cells(self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])), self.fabric,
-                             self.membrane.n_points_per_cell, laws, self.comm, **options)
+        rule = crack_rule_on_cells(self.setup.failure, self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
+                                   self.fabric, self.membrane.n_points_per_cell, laws, self.comm)
         rule.add_crack(self.slit, 0, 0.0)
         return rule
 
