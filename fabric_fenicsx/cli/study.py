@@ -88,6 +88,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--failure-length", type=float, default=0.0, help="tear: the yarn average's length (m)")
     parser.add_argument("--slit-cut", default="cells",
                         help="tear: the slit's cells removed (cells) or only their warp yarns cut (warp)")
+    parser.add_argument("--hourglass", type=float, default=0.05,
+                        help="tear: the reduced element's hourglass control as a fraction of the yarn modulus "
+                             "(membrane.hourglass, default 0.05); after a crack it is the only in-plane load "
+                             "path between neighbouring yarns (docs/tear_test.md)")
     parser.add_argument("--cell-rule", default="weakest",
                         help="strip: how a cell reads the segments it covers, weakest, patch or yarn (default weakest)")
     parser.add_argument("--crack-band", action="store_true",

@@ -10,7 +10,9 @@ is refused: OUT/tear-setup.json), OUT/tear-<family>-<size>.npz (each
 mesh's final cells, for the picture), OUT/tear.json and OUT/tear.png, and prints the families
 compared at each size: the panels without scatter, and with members each family's means over
 its members with 95 % intervals and the paired differences (a seed is the same fabric on every
-mesh).
+mesh). ``--hourglass`` sets the reduced element's hourglass control (``membrane.hourglass`` of
+the scenes): after a crack it carries the load past the slit's tip, so the tear load on a grid
+along the yarns moves with it (docs/tear_test.md).
 """
 from __future__ import annotations
 
@@ -93,7 +95,8 @@ def run(args: argparse.Namespace) -> int:
         setup = tear.TearSetup(notch=getattr(args, "notch", "edge"), grips=getattr(args, "grips", "clamped"),
                                failure=getattr(args, "failure", "thesis"),
                                failure_length=getattr(args, "failure_length", 0.0),
-                               slit_cut=getattr(args, "slit_cut", "cells"))
+                               slit_cut=getattr(args, "slit_cut", "cells"),
+                               hourglass=getattr(args, "hourglass", 0.05))
     except ValueError as err:
         problems.append(str(err))
     if args.members > 1 and args.scatter not in ("weibull", "fibrils"):
@@ -144,7 +147,8 @@ def _run(args, plan, setup, out: Path) -> int:
     seeds = [-1, *range(args.members - 1)]
     t0 = time.perf_counter()
     say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
-    say(f"{PROG}: {len(plan)} meshes x {len(seeds)} pull(s), {notch} notch, into {out}")
+    say(f"{PROG}: {len(plan)} meshes x {len(seeds)} pull(s), {notch} notch, {setup.failure} rule, "
+        f"hourglass control {setup.hourglass:g}, into {out}")
     surrogate = None
     for family, h in plan:
         todo = [s for s in seeds if (family, h, s) not in have]

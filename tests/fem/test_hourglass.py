@@ -230,3 +230,29 @@ def test_the_per_cell_forces_are_the_variation_of_psi_assembled_from_ufl():
     assert scale > 0 and energy_ref > 0
     assert np.abs(f - f_ref).max() < 1e-10 * scale
     assert energy == pytest.approx(energy_ref, rel=1e-10)
+
+
+@pytest.mark.parametrize("angle_deg, warp_cells", [(0.0, 4), (45.0, 2)], ids=["aligned", "turned_45"])
+def test_on_a_grid_turned_45_degrees_the_warp_and_fill_hang_on_different_nodes(angle_deg, warp_cells):
+    """The one-point element reads a yarn's stretch from the cell-centre gradient. Yarns along
+    the cell edges: a node moved along the warp stretches the warp of all four cells around it.
+    Yarns along the cell diagonals (a grid turned 45 degrees to them): the centre gradient along
+    a diagonal sees only that diagonal's two nodes, so the node stretches the warp of the two
+    cells whose warp diagonal it ends and nothing of the two whose fill diagonal it ends: there
+    each node carries one warp chain and one fill chain, and a warp slides along the fill it
+    crosses against the hourglass control alone (the continuum's yarns move together). Why the
+    turned grid let Y90's projectile through where the others held it with `yarn_tip`
+    (docs/ballistic_limit.md)."""
+    m, hg = membrane_with_control(n=4, q=1, angle=np.radians(angle_deg))
+    L1 = np.array(yarn_directions(np.radians(angle_deg))[0])
+    node = np.array([SIDE / 4, 0.0])                                 # an interior node
+    moved = lambda x: np.vstack([1e-5 * L1[0] * (np.hypot(x[0] - node[0], x[1] - node[1]) < 1e-9),
+                                 1e-5 * L1[1] * (np.hypot(x[0] - node[0], x[1] - node[1]) < 1e-9),
+                                 0 * x[0]])
+    m.set_displacement(m.interpolate_owned(moved))
+    E1, E2 = m.yarn_strains()
+    first_order = 1e-2 * 1e-5 / (SIDE / 4)        # a stretch of the order of the move: 4e-4
+    strained = lambda E: MPI.COMM_WORLD.allreduce(int(np.sum(np.abs(E) > first_order)), op=MPI.SUM)
+    assert strained(E1) == warp_cells
+    assert strained(E2) == 0                       # the fill only turns (Green strain 2e-8)
+    assert MPI.COMM_WORLD.allreduce(m.term_energies()["hourglass"], op=MPI.SUM) > 0
