@@ -86,6 +86,9 @@ class TearSetup:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} = {value!r}: must be a finite number > 0")
+        if self.hourglass > 1.0:
+            raise ValueError(f"hourglass = {self.hourglass!r}: must lie in (0, 1], a fraction of the yarn "
+                             "modulus as the scenes' membrane.hourglass")
         if self.slit >= 0.5 * self.side:
             raise ValueError(f"slit = {self.slit!r} m: must be shorter than half the panel ({self.side / 2!r} m)")
 

@@ -112,6 +112,10 @@ def test_families_are_named_and_bad_ones_refused():
         parse_family("rotated")
     with pytest.raises(ValueError, match="slit"):
         TearSetup(side=0.06, slit=0.04)
+    for k in (0.0, 1.5, math.nan):
+        with pytest.raises(ValueError, match="hourglass"):
+            TearSetup(hourglass=k)
+    assert TearSetup(hourglass=1.0).hourglass == 1.0
 
 
 def test_the_tear_is_the_broken_cells_joined_to_the_slit():
@@ -247,9 +251,10 @@ def test_the_command_writes_its_report_and_refuses_bad_input(tmp_path):
     bad_rule = subprocess.run([*cmd, "--failure", "yarn_average", "--out", str(tmp_path / "rule")],
                               capture_output=True, text=True, timeout=300)
     assert bad_rule.returncode == 2 and "failure_length" in bad_rule.stderr
-    no_control = subprocess.run([*cmd, "--hourglass", "0", "--out", str(tmp_path / "hg")],
-                                capture_output=True, text=True, timeout=300)
-    assert no_control.returncode == 2 and "hourglass" in no_control.stderr
+    for k in ("0", "2"):
+        no_control = subprocess.run([*cmd, "--hourglass", k, "--out", str(tmp_path / "hg")],
+                                    capture_output=True, text=True, timeout=300)
+        assert no_control.returncode == 2 and "hourglass" in no_control.stderr and "Traceback" not in no_control.stderr
     stiffer = subprocess.run([*cmd, "--families", "aligned", "--sizes", "0.004", "--hourglass", "0.1",
                               "--out", str(out)], capture_output=True, text=True, timeout=900)
     assert stiffer.returncode == 2 and "another setup" in stiffer.stderr   # the control is the setup's
