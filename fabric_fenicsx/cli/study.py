@@ -90,7 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="tear: the slit's cells removed (cells) or only their warp yarns cut (warp)")
     parser.add_argument("--hourglass", type=float, default=0.05,
                         help="tear: the reduced element's hourglass control as a fraction of the yarn modulus "
-                             "(membrane.hourglass, default 0.05); after a crack it is the only in-plane load "
+                             "(membrane.hourglass, default 0.05); after a crack it is the main in-plane load "
                              "path between neighbouring yarns (docs/tear_test.md)")
     parser.add_argument("--cell-rule", default="weakest",
                         help="strip: how a cell reads the segments it covers, weakest, patch or yarn (default weakest)")
