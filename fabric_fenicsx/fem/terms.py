@@ -51,7 +51,7 @@ import ufl
 from numba import njit
 
 __all__ = ["MembraneTerm", "FollowsIntegrity", "YarnTerm", "IsotropicShear", "HourglassControl",
-           "fluctuation_matrices"]
+           "fluctuation_matrices", "shape_gradients"]
 
 
 class MembraneTerm:
@@ -310,22 +310,31 @@ class HourglassControl(MembraneTerm):
         return self.k
 
 
-def fluctuation_matrices(X: np.ndarray, directions: np.ndarray, degree: int = 2) -> np.ndarray:
-    """M_i,ab = int_cell g_ai g_bi dA, g_ai = (Grad N_a - <Grad N_a>) . L_i, for bilinear
-    quadrilaterals with reference node coordinates ``X`` (n_cells, 4, 2, in basix's vertex
-    order) and yarn directions ``directions`` (2, 2): shape (n_cells, 2, 4, 4). Integrated and
-    averaged (<.>, area-weighted) with the Gauss rule of ``degree``."""
+def shape_gradients(X: np.ndarray, degree: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(N, Grad N, W) of bilinear quadrilaterals with reference node coordinates ``X`` (n_cells,
+    4, 2, in basix's vertex order) at the Gauss points of ``degree``: the shape functions N
+    (q, a), their gradients Grad N_a (n_cells, q, a, 2) and the points' weights W = |det J| w
+    (n_cells, q). A degenerate cell (zero Jacobian at a point) is refused."""
     points, weights = basix.make_quadrature(basix.CellType.quadrilateral, degree)
     element = basix.create_element(basix.ElementFamily.P, basix.CellType.quadrilateral, 1,
                                    basix.LagrangeVariant.equispaced)
-    dN = element.tabulate(1, points)[1:, :, :, 0]                   # (2, q, a): d/dxi_j
+    table = element.tabulate(1, points)
+    N, dN = table[0, :, :, 0], table[1:, :, :, 0]                   # (q, a); (2, q, a): d/dxi_j
     J = np.einsum("caI,jqa->cqIj", X, dN)                           # dX_I / dxi_j
     detJ = np.abs(J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0])   # either orientation
     if not np.all(detJ > 0):
         raise ValueError("fluctuation_matrices: a degenerate quadrilateral (zero Jacobian at a "
                          "Gauss point): fix the mesh")
     grad = np.einsum("jqa,cqjI->cqaI", dN, np.linalg.inv(J))        # Grad N_a at the points
-    W = detJ * weights                                              # (c, q)
+    return N, grad, detJ * weights
+
+
+def fluctuation_matrices(X: np.ndarray, directions: np.ndarray, degree: int = 2) -> np.ndarray:
+    """M_i,ab = int_cell g_ai g_bi dA, g_ai = (Grad N_a - <Grad N_a>) . L_i, for bilinear
+    quadrilaterals with reference node coordinates ``X`` (n_cells, 4, 2, in basix's vertex
+    order) and yarn directions ``directions`` (2, 2): shape (n_cells, 2, 4, 4). Integrated and
+    averaged (<.>, area-weighted) with the Gauss rule of ``degree``."""
+    _, grad, W = shape_gradients(X, degree)                         # W: (c, q)
     mean = np.einsum("cq,cqaI->caI", W / W.sum(axis=1, keepdims=True), grad)
     g = np.einsum("cqaI,iI->cqai", grad - mean[:, None], directions)
     return np.einsum("cq,cqai,cqbi->ciab", W, g, g)
