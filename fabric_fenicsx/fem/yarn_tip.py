@@ -39,7 +39,7 @@ import numpy as np
 from fabric_fenicsx.fem.polygons import polygon_areas
 from fabric_fenicsx.fem.yarn_crack import UNCRACKED, YarnCrack
 
-__all__ = ["YarnTip", "grouped_median", "CRACK_RULES", "crack_rule_on_cells"]
+__all__ = ["YarnTip", "grouped_median"]
 
 
 def grouped_median(values: np.ndarray, group: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
@@ -127,14 +127,3 @@ class YarnTip(YarnCrack):
             out[name]["roots_held"] = int(self.roots_held[i])
         return out
 
-
-CRACK_RULES = {"yarn_crack": (YarnCrack, {}), "yarn_tip": (YarnTip, {}), "yarn_strain": (YarnTip, {"roots": True})}
-"""The crack-tracking failure rules by name (``material.failure``, ``study tear --failure``): class
-and options."""
-
-
-def crack_rule_on_cells(name: str, corners, directions, fabric, points_per_cell: int = 1, laws=None, comm=None):
-    """The crack-tracking rule ``name`` (:data:`CRACK_RULES`) over cells, as
-    :meth:`YarnCrack.on_cells <fabric_fenicsx.fem.yarn_crack.YarnCrack.on_cells>`."""
-    kind, options = CRACK_RULES[name]
-    return kind.on_cells(corners, directions, fabric, points_per_cell, laws, comm, **options)

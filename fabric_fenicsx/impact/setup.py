@@ -8,7 +8,7 @@ from fabric_fenicsx.fem.mesh import BOTTOM, LEFT, RIGHT, TOP, MeshSpec, aligned_
 from fabric_fenicsx.fem.mesh_file import read_square_msh
 from fabric_fenicsx.fem.projectile import PenaltyContact, Projectile
 from fabric_fenicsx.fem.terms import HourglassControl, IsotropicShear, MembraneTerm
-from fabric_fenicsx.fem.yarn_tip import CRACK_RULES, crack_rule_on_cells
+from fabric_fenicsx.fem.crack_rules import CRACK_RULES, crack_rule_on_cells
 from fabric_fenicsx.impact.output import cell_corners
 from fabric_fenicsx.impact.scene import Scene, SceneError, load_fabric
 from fabric_fenicsx.impact.term_specs import build_scene_terms

@@ -41,7 +41,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from fabric_fenicsx.fem.yarn_tip import CRACK_RULES, crack_rule_on_cells
+from fabric_fenicsx.fem.crack_rules import CRACK_RULES, crack_rule_on_cells
 
 FAILURE_RULES = ("thesis", "yarn_average", *CRACK_RULES)
 """The failure rules a pull can use: the scenes' (``material.failure``) and the yarn average."""
@@ -66,7 +66,7 @@ class TearSetup:
     dt_safety: float = 0.8
     erosion_strain: float = 1.0  # material.erosion_strain
     grips: str = "clamped"       # "clamped" (every component held) | "rollers" (the edges free along y)
-    failure: str = "thesis"      # "thesis" | "yarn_average" | "yarn_crack" | "yarn_tip" | "yarn_strain"
+    failure: str = "thesis"      # "thesis" | "yarn_average" | one of CRACK_RULES
     failure_length: float = 0.0  # m: the yarn average's length (yarn_average only)
     failure_width: float = 0.0   # m: the yarn average's width across the yarn (0: one cell)
     slit_cut: str = "cells"      # "cells" (the slit's cells removed) | "warp" (their warp cut, alpha1 = 0)

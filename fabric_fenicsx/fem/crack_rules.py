@@ -1,0 +1,21 @@
+"""The crack-tracking failure rules by name (``material.failure``, ``study tear --failure``)."""
+from __future__ import annotations
+
+from fabric_fenicsx.fem.shear_lag import ShearLag
+from fabric_fenicsx.fem.yarn_crack import YarnCrack
+from fabric_fenicsx.fem.yarn_tip import YarnTip
+
+__all__ = ["CRACK_RULES", "crack_rule_on_cells"]
+
+CRACK_RULES = {"yarn_crack": (YarnCrack, {}), "yarn_tip": (YarnTip, {}), "yarn_strain": (YarnTip, {"roots": True}),
+               "shear_lag": (ShearLag, {})}
+"""Name -> (class, options): the yarn crack (:mod:`~fabric_fenicsx.fem.yarn_crack`), its tip that
+reads its yarn (:mod:`~fabric_fenicsx.fem.yarn_tip`; ``yarn_strain``: its start too), and its tip
+that breaks by Hedgepeth's concentration of its yarn (:mod:`~fabric_fenicsx.fem.shear_lag`)."""
+
+
+def crack_rule_on_cells(name: str, corners, directions, fabric, points_per_cell: int = 1, laws=None, comm=None):
+    """The crack-tracking rule ``name`` (:data:`CRACK_RULES`) over cells, as
+    :meth:`YarnCrack.on_cells <fabric_fenicsx.fem.yarn_crack.YarnCrack.on_cells>`."""
+    kind, options = CRACK_RULES[name]
+    return kind.on_cells(corners, directions, fabric, points_per_cell, laws, comm, **options)

@@ -1,0 +1,216 @@
+"""The yarn crack whose tip breaks by the fabric's own concentration: the yarn beside n broken
+yarns carries Hedgepeth's shear-lag factor K_n times its yarn's stretch, counted in yarn spacings.
+
+A rule that lets a crack's tip cell decide on its own strain reads the cells' concentration, which
+on this reduced element is mostly its hourglass control's coupling of neighbouring yarns (on cells
+along the yarns) or nothing (on cells turned 45 degrees): a property of the mesh
+(docs/tear_test.md, "What carries the load past the slit's tip"). The thesis's membrane passes no
+load between yarns (Sec. 2.1); a woven fabric passes it at the crossings, and parallel yarns
+loaded through a shear-lag coupling carry, in the yarn beside n broken ones, the concentration
+
+    K_n = (4 . 6 . 8 ... (2n + 2)) / (3 . 5 . 7 ... (2n + 1))        (K_0 = 1)
+
+(Hedgepeth, "Stress concentrations in filamentary structures", NASA TN D-882, 1961: the static
+two-dimensional array), which does not depend on the coupling's stiffness: that sets only the
+length over which the concentration decays along the yarn, here not resolved. This rule takes the
+concentration from there and the strain from the yarn:
+
+* **The tip** (a live cell not cracked in family i, crossed by the line of a crack of family i and
+  touching that crack's broken part): it joins the crack when its yarn's stretch, at the strain
+  read along the yarn away from it (:meth:`YarnTip.yarn_strain
+  <fabric_fenicsx.fem.yarn_tip.YarnTip.yarn_strain>`, the median over a band one cell wide) and
+  concentrated as 1 + K_n (mu_i - 1), damages the yarn at the segment's law (Eq. 2-25, the
+  strength of its root), whatever its own strains do. n = round(a / s): a the length across the
+  yarns of the crack's broken part that the tip touches, s the spacing of the yarns of family i
+  (the other family's unit-cell length, 0.726 mm for Zylon AS). A cell damaged by its own strains
+  but not by its yarn's concentrated stretch is held (its new damage taken back).
+* **The crack**: a joined cell softens by its own strains with the law of equal energy of the
+  yarn crack (one segment's work per yarn cut, :mod:`fabric_fenicsx.fem.yarn_crack`), started at
+  its stretch when it joins if that lies below the law's start; it counts as broken, and so
+  lengthens the crack for the next tip, once its alpha_i is at most 1/2 (or it is removed). A crack
+  therefore grows by one cell at a time, each after the one before has opened.
+* **A crack's start** (a root) waits for its yarn's strain to reach the segment's law
+  (``yarn_strain``): K_0 = 1.
+
+In the membrane the cut yarns' load goes to the whole net section (every uncut yarn carries its
+strain); K_n then multiplies that net-section stretch, so a finite panel's factor W / (W - a) is
+counted on top of Hedgepeth's, whose far field is an infinite sheet's. The concentration is the
+static one (the dynamic overshoot after a sudden break, up to 1.27 for n = 1 in Hedgepeth's
+paper, is left out), and it assumes the crossings pass load as a shear lag, without slip: a
+fabric whose crossings slip (the del zone of a tear) concentrates less. A candidate, not the
+scenes' default. One rank, as the yarn crack.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fabric_fenicsx.fem.yarn_crack import GIVEN, TIP, UNCRACKED
+from fabric_fenicsx.fem.yarn_tip import YarnTip
+
+__all__ = ["hedgepeth_concentration", "ShearLag", "BROKEN_ALPHA"]
+
+BROKEN_ALPHA = 0.5
+"""A cracked cell counts as broken (lengthens its crack for the next tip) at alpha_i <= this, the
+tear test's measure of a broken cell."""
+
+
+def hedgepeth_concentration(n) -> np.ndarray:
+    """K_n of the module docstring for integer counts ``n`` >= 0 of broken yarns (array-like)."""
+    n = np.asarray(n)
+    if n.size and (n.min() < 0 or not np.issubdtype(n.dtype, np.integer)):
+        raise ValueError(f"the broken yarns' count must be an integer >= 0, got {n.ravel()[0]!r}")
+    k = np.arange(1, int(n.max(initial=0)) + 1)
+    table = np.concatenate(([1.0], np.cumprod((2.0 * k + 2.0) / (2.0 * k + 1.0))))
+    return table[n]
+
+
+def touching_span(lo, hi, length_lo, length_hi, at_lo, at_hi, gap):
+    """The broken cells of one crack, each spanning [lo, hi] across the yarns (its corners'
+    extent), joined into pieces where these overlap or lie within ``gap`` of each other; a piece's
+    length is max(length_hi) - min(length_lo) over its cells (each cell counted by its width
+    sqrt(area) about its centre, so that the cells turned to the yarns, whose corners reach past
+    their neighbours', do not lengthen it). Per candidate spanning [at_lo, at_hi] (arrays): the
+    summed length of the pieces it touches within ``gap`` (the piece it ends, or the two it would
+    bridge), 0 for none. Vectorised."""
+    order = np.argsort(lo)
+    lo, hi, length_lo, length_hi = lo[order], hi[order], length_lo[order], length_hi[order]
+    start = np.flatnonzero(np.r_[True, lo[1:] > np.maximum.accumulate(hi)[:-1] + gap])
+    p_lo, p_hi = lo[start], np.maximum.reduceat(hi, start)
+    p_len = np.maximum.reduceat(length_hi, start) - np.minimum.reduceat(length_lo, start)
+    span = np.zeros(np.size(at_lo))
+    last = np.searchsorted(p_lo, at_hi + gap, side="right") - 1   # the last piece starting before
+    for k in (last, last - 1):
+        kk = np.clip(k, 0, p_lo.size - 1)
+        touches = (k >= 0) & (p_hi[kk] >= at_lo - gap) & (p_lo[kk] <= at_hi + gap)
+        span += np.where(touches, p_len[kk], 0.0)
+    return span
+
+
+class ShearLag(YarnTip):
+    """The yarn crack whose tips break by Hedgepeth's concentration of their yarn's stretch
+    (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
+
+    def __init__(self, corners, directions, *args, **kwargs):
+        kwargs.setdefault("roots", True)
+        super().__init__(corners, directions, *args, **kwargs)
+        n = self.centres.shape[0]
+        self.broken = np.zeros((2, n), dtype=bool)
+        self.near = np.zeros((2, n), dtype=bool)   # within the largest radius of a crack of the family
+        self.joined = np.zeros(2, np.int64)        # cells that joined by the concentration, per family
+        self.largest = np.zeros(2, np.int64)       # the largest n a joining tip saw, per family
+        spacing = self.segment[::-1]               # family i's yarns lie the other family's segment apart
+        self.spacing = spacing
+        extent = np.array([np.ptp(self.at[1 - i]) + self.width.max(initial=0.0) for i in range(2)])
+        self.k_max = hedgepeth_concentration(np.ceil(extent / spacing).astype(np.int64))
+        # the lowest critical stretch a concentrated law takes: the weakest segment's under the largest K
+        self.mu_floor = 1.0 + (self.base[0].min(axis=1, initial=np.inf) - 1.0) / self.k_max
+
+    def damage_range(self):
+        """:meth:`YarnCrack.damage_range`, down to the segment laws under the largest K_n the
+        panel's extent allows."""
+        out = super().damage_range()
+        out.mu_crit_min[:] = np.minimum(out.mu_crit_min, self.mu_floor)
+        return out
+
+    def _cracks_added(self, family: int, cells: np.ndarray) -> None:
+        super()._cracks_added(family, cells)
+        if cells.size:
+            near = self.tree.query_ball_point(self.centres[cells], self._reach)
+            self.near[family, np.unique(np.concatenate([np.asarray(k, np.int64) for k in near]))] = True
+            self.broken[family, cells[self.kind[family, cells] == GIVEN]] = True   # a slit
+
+    def _tips_ready(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
+        # the tips the concentration lets join have joined before the base class looks (admit)
+        self.tips_held[family] += len(tips)
+        return np.zeros(len(tips), dtype=bool)
+
+    def admit(self, surrogate, points, E1, E2, a_old, b_new):
+        """:meth:`YarnCrack.admit`, with the tips that their yarn's concentrated stretch damages
+        joined first, and every crack cell not yet broken damaged at least as that stretch
+        damages it (module docstring)."""
+        cell_of = points // self.npc
+        live = np.bincount(cell_of, minlength=self.centres.shape[0]) > 0
+        driven = []
+        for i in range(2):
+            opened = (self.kind[i] != UNCRACKED) & ~self.broken[i]
+            self.broken[i] |= opened & ~live
+            self.broken[i, cell_of[opened[cell_of] & (a_old[i] <= BROKEN_ALPHA)]] = True
+            driven.append(self._concentrated(i, surrogate, points, cell_of, live, E1, E2, a_old))
+        b, redo = super().admit(surrogate, points, E1, E2, a_old, b_new)
+        more = [redo]
+        for i, (at, damage) in enumerate(driven):
+            lower = at[damage < b[i, at]]
+            b[i, lower] = np.minimum(b[i, lower], damage[damage < b[i, at]])
+            more.append(lower)
+        return b, np.unique(np.concatenate(more))
+
+    def _concentrated(self, family, surrogate, points, cell_of, live, E1, E2, a_old):
+        """(at, damage): the positions (into ``points``) of the tips of ``family``'s cracks and of
+        its crack cells not yet broken, and the damage of family ``family`` there at their yarn's
+        stretch concentrated by K_n (the segment's law); the tips it damages join the crack."""
+        none = (np.zeros(0, np.int64), np.zeros(0))
+        near = self.near[family] & live & ~self.broken[family]
+        candidates = np.flatnonzero(near & (self.kind[family] == UNCRACKED))
+        state, line = self._classified(family, candidates)
+        tips = candidates[state == TIP]
+        opened = np.flatnonzero(near & (self.kind[family] != UNCRACKED))
+        cells = np.concatenate((tips, opened))
+        line = np.concatenate((line[state == TIP], self.line[family, opened]))
+        n_broken = self._broken_count(family, cells, line)
+        keep = n_broken > 0
+        cells, line, n_broken = cells[keep], line[keep], n_broken[keep]
+        if cells.size == 0:
+            return none
+        order = np.argsort(cells)
+        cells, line, n_broken = cells[order], line[order], n_broken[order]
+        K = hedgepeth_concentration(n_broken)
+        count = np.bincount(cell_of, minlength=self.centres.shape[0])
+        # both strains of the yarn's band: the fill's strain sets the warp's crimp (Eq. 2-17 ff.)
+        far = [self.yarn_strain(family, cells, np.bincount(cell_of, weights=E, minlength=count.size)
+                                / np.maximum(count, 1), live) for E in (E1, E2)]
+        at = np.flatnonzero(np.isin(cell_of, cells))
+        where = np.searchsorted(cells, cell_of[at])
+        e = [far[0][where], far[1][where]]
+        mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
+        mu[family] = 1.0 + (self.base[0][family, points[at]] - 1.0) / K[where]
+        sc[family] = self.base[1][family, points[at]] / K[where]
+        damage = surrogate.update(e[0], e[1], a_old[0, at], a_old[1, at], critical_stretch=mu,
+                                  softening_scale=sc)[2 + family]
+        hit = damage < a_old[family, at]
+        go = np.unique(cell_of[at][hit & (self.kind[family, cell_of[at]] == UNCRACKED)])
+        if go.size:
+            pick = np.searchsorted(cells, go)
+            self.kind[family, go], self.line[family, go] = TIP, line[pick]
+            self.joined[family] += go.size
+            self.largest[family] = max(int(self.largest[family]), int(n_broken[pick].max()))
+            self._cracks_added(family, go)
+        return at[hit], damage[hit]
+
+    def _broken_count(self, family: int, tips: np.ndarray, line: np.ndarray) -> np.ndarray:
+        """Per tip: round(a / s), a the length across family ``family``'s yarns of the broken part
+        of the crack on its ``line`` that it touches (0: it touches none)."""
+        j = 1 - family
+        half = 0.5 * self.width
+        gap = 0.05 * float(np.median(self.width))   # neighbours' corners meet up to round-off
+        n_broken = np.zeros(tips.size, np.int64)
+        broken = np.flatnonzero(self.broken[family])
+        for value in np.unique(line):
+            on = broken[self.line[family, broken] == value]
+            mine = np.flatnonzero(line == value)
+            if on.size == 0:
+                continue
+            c = tips[mine]
+            span = touching_span(self.lo[j, on], self.hi[j, on], self.at[j, on] - half[on],
+                                 self.at[j, on] + half[on], self.lo[j, c], self.hi[j, c], gap)
+            n_broken[mine] = np.rint(span / self.spacing[family]).astype(np.int64)
+        return n_broken
+
+    def summary(self) -> dict:
+        """:meth:`YarnTip.summary` with, per family, ``concentration_joined``: the cells that joined
+        a crack by their yarn's concentrated stretch, and ``largest_broken_yarns``: the largest n
+        a joining tip saw."""
+        out = super().summary()
+        for i, name in enumerate(("warp", "fill")):
+            out[name]["concentration_joined"] = int(self.joined[i])
+            out[name]["largest_broken_yarns"] = int(self.largest[i])
+        return out
