@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabric_fenicsx.fem.yarn_crack import GIVEN, TIP, UNCRACKED
+from fabric_fenicsx.fem.yarn_crack import GIVEN, ROOT, TIP, UNCRACKED
 from fabric_fenicsx.fem.yarn_tip import YarnTip
 
 __all__ = ["hedgepeth_concentration", "ShearLag", "BROKEN_ALPHA"]
@@ -64,26 +64,29 @@ def hedgepeth_concentration(n) -> np.ndarray:
     return table[n]
 
 
-def touching_span(lo, hi, length_lo, length_hi, at_lo, at_hi, gap):
+def touching_pieces(lo, hi, length_lo, length_hi, weights, at_lo, at_hi, gap):
     """The broken cells of one crack, each spanning [lo, hi] across the yarns (its corners'
     extent), joined into pieces where these overlap or lie within ``gap`` of each other; a piece's
     length is max(length_hi) - min(length_lo) over its cells (each cell counted by its width
     sqrt(area) about its centre, so that the cells turned to the yarns, whose corners reach past
-    their neighbours', do not lengthen it). Per candidate spanning [at_lo, at_hi] (arrays): the
-    summed length of the pieces it touches within ``gap`` (the piece it ends, or the two it would
-    bridge), 0 for none. Vectorised."""
+    their neighbours', do not lengthen it). Per candidate spanning [at_lo, at_hi] (arrays), over
+    the pieces it touches within ``gap`` (the piece it ends, or the two it would bridge): (span,
+    sums), their summed length and the sums of the cells' ``weights`` (m, k) columns; 0 for none.
+    Vectorised."""
     order = np.argsort(lo)
-    lo, hi, length_lo, length_hi = lo[order], hi[order], length_lo[order], length_hi[order]
+    lo, hi, length_lo, length_hi, weights = lo[order], hi[order], length_lo[order], length_hi[order], weights[order]
     start = np.flatnonzero(np.r_[True, lo[1:] > np.maximum.accumulate(hi)[:-1] + gap])
     p_lo, p_hi = lo[start], np.maximum.reduceat(hi, start)
     p_len = np.maximum.reduceat(length_hi, start) - np.minimum.reduceat(length_lo, start)
-    span = np.zeros(np.size(at_lo))
+    p_sum = np.add.reduceat(weights, start, axis=0)
+    span, sums = np.zeros(np.size(at_lo)), np.zeros((np.size(at_lo), weights.shape[1]))
     last = np.searchsorted(p_lo, at_hi + gap, side="right") - 1   # the last piece starting before
     for k in (last, last - 1):
         kk = np.clip(k, 0, p_lo.size - 1)
         touches = (k >= 0) & (p_hi[kk] >= at_lo - gap) & (p_lo[kk] <= at_hi + gap)
         span += np.where(touches, p_len[kk], 0.0)
-    return span
+        sums += np.where(touches[:, None], p_sum[kk], 0.0)
+    return span, sums
 
 
 class ShearLag(YarnTip):
@@ -98,6 +101,7 @@ class ShearLag(YarnTip):
         self.near = np.zeros((2, n), dtype=bool)   # within the largest radius of a crack of the family
         self.joined = np.zeros(2, np.int64)        # cells that joined by the concentration, per family
         self.largest = np.zeros(2, np.int64)       # the largest n a joining tip saw, per family
+        self.carried = np.full((2, n), np.nan)     # mu_i - 1 a crack cell's yarn carried as it joined
         spacing = self.segment[::-1]               # family i's yarns lie the other family's segment apart
         self.spacing = spacing
         extent = np.array([np.ptp(self.at[1 - i]) + self.width.max(initial=0.0) for i in range(2)])
@@ -136,18 +140,28 @@ class ShearLag(YarnTip):
             self.broken[i] |= opened & ~live
             self.broken[i, cell_of[opened[cell_of] & (a_old[i] <= BROKEN_ALPHA)]] = True
             driven.append(self._concentrated(i, surrogate, points, cell_of, live, E1, E2, a_old))
+        before = self.kind == ROOT
         b, redo = super().admit(surrogate, points, E1, E2, a_old, b_new)
+        self._record_roots(np.argwhere((self.kind == ROOT) & ~before), surrogate, points, cell_of, E1, E2)
         more = [redo]
         for i, (at, damage) in enumerate(driven):
-            lower = at[damage < b[i, at]]
-            b[i, lower] = np.minimum(b[i, lower], damage[damage < b[i, at]])
-            more.append(lower)
+            lower = damage < b[i, at]
+            b[i, at[lower]] = damage[lower]
+            more.append(at[lower])
         return b, np.unique(np.concatenate(more))
+
+    def _record_roots(self, started, surrogate, points, cell_of, E1, E2) -> None:
+        """The stretch mu_i - 1 that each new root's yarn carried as it started (its own strains,
+        the yarns intact)."""
+        for family, c in started:
+            at = np.flatnonzero(cell_of == c)
+            mu = surrogate.evaluate(E1[at], E2[at], np.ones(at.size), np.ones(at.size))[2 + family]
+            self.carried[family, c] = float(np.mean(mu)) - 1.0
 
     def _concentrated(self, family, surrogate, points, cell_of, live, E1, E2, a_old):
         """(at, damage): the positions (into ``points``) of the tips of ``family``'s cracks and of
         its crack cells not yet broken, and the damage of family ``family`` there at their yarn's
-        stretch concentrated by K_n (the segment's law); the tips it damages join the crack."""
+        concentrated stretch (module docstring, the segment's law); the tips it damages join."""
         none = (np.zeros(0, np.int64), np.zeros(0))
         near = self.near[family] & live & ~self.broken[family]
         candidates = np.flatnonzero(near & (self.kind[family] == UNCRACKED))
@@ -156,14 +170,12 @@ class ShearLag(YarnTip):
         opened = np.flatnonzero(near & (self.kind[family] != UNCRACKED))
         cells = np.concatenate((tips, opened))
         line = np.concatenate((line[state == TIP], self.line[family, opened]))
-        n_broken = self._broken_count(family, cells, line)
+        n_broken, given, shed = self._broken_yarns(family, cells, line)
         keep = n_broken > 0
-        cells, line, n_broken = cells[keep], line[keep], n_broken[keep]
-        if cells.size == 0:
+        if not keep.any():
             return none
-        order = np.argsort(cells)
-        cells, line, n_broken = cells[order], line[order], n_broken[order]
-        K = hedgepeth_concentration(n_broken)
+        order = np.argsort(cells[keep])
+        cells, line, n_broken, given, shed = (x[keep][order] for x in (cells, line, n_broken, given, shed))
         count = np.bincount(cell_of, minlength=self.centres.shape[0])
         # both strains of the yarn's band: the fill's strain sets the warp's crimp (Eq. 2-17 ff.)
         far = [self.yarn_strain(family, cells, np.bincount(cell_of, weights=E, minlength=count.size)
@@ -171,28 +183,37 @@ class ShearLag(YarnTip):
         at = np.flatnonzero(np.isin(cell_of, cells))
         where = np.searchsorted(cells, cell_of[at])
         e = [far[0][where], far[1][where]]
+        # mu* - 1 = a (mu - 1) + b as the segment's law of mu: critical 1 + (m - b) / a, scale s / a
+        K = hedgepeth_concentration(n_broken)[where]
+        a = 1.0 + (K - 1.0) * given[where]
+        b = (K - 1.0) * (1.0 - given[where]) * shed[where]
         mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
-        mu[family] = 1.0 + (self.base[0][family, points[at]] - 1.0) / K[where]
-        sc[family] = self.base[1][family, points[at]] / K[where]
+        mu[family] = np.maximum(1.0 + (self.base[0][family, points[at]] - 1.0 - b) / a, self.mu_floor[family])
+        sc[family] = self.base[1][family, points[at]] / a
         damage = surrogate.update(e[0], e[1], a_old[0, at], a_old[1, at], critical_stretch=mu,
                                   softening_scale=sc)[2 + family]
         hit = damage < a_old[family, at]
         go = np.unique(cell_of[at][hit & (self.kind[family, cell_of[at]] == UNCRACKED)])
         if go.size:
             pick = np.searchsorted(cells, go)
+            ones = np.ones(go.size)
+            carried = surrogate.evaluate(far[0][pick], far[1][pick], ones, ones)[2 + family] - 1.0
+            self.carried[family, go] = carried
             self.kind[family, go], self.line[family, go] = TIP, line[pick]
             self.joined[family] += go.size
             self.largest[family] = max(int(self.largest[family]), int(n_broken[pick].max()))
             self._cracks_added(family, go)
         return at[hit], damage[hit]
 
-    def _broken_count(self, family: int, tips: np.ndarray, line: np.ndarray) -> np.ndarray:
-        """Per tip: round(a / s), a the length across family ``family``'s yarns of the broken part
-        of the crack on its ``line`` that it touches (0: it touches none)."""
+    def _broken_yarns(self, family: int, tips: np.ndarray, line: np.ndarray):
+        """Per tip, of the broken part of the crack on its ``line`` that it touches: (n, given,
+        shed): n = round(a / s) its yarns (a its length across family ``family``'s yarns; 0: it
+        touches none), the fraction of its width given (a slit: its yarns count as loaded like the
+        tip's), and the mean stretch mu - 1 its other yarns carried as they joined."""
         j = 1 - family
         half = 0.5 * self.width
         gap = 0.05 * float(np.median(self.width))   # neighbours' corners meet up to round-off
-        n_broken = np.zeros(tips.size, np.int64)
+        n_broken, given, shed = np.zeros(tips.size, np.int64), np.zeros(tips.size), np.zeros(tips.size)
         broken = np.flatnonzero(self.broken[family])
         for value in np.unique(line):
             on = broken[self.line[family, broken] == value]
@@ -200,10 +221,16 @@ class ShearLag(YarnTip):
             if on.size == 0:
                 continue
             c = tips[mine]
-            span = touching_span(self.lo[j, on], self.hi[j, on], self.at[j, on] - half[on],
-                                 self.at[j, on] + half[on], self.lo[j, c], self.hi[j, c], gap)
+            is_given = self.kind[family, on] == GIVEN
+            carried = np.where(is_given, 0.0, np.nan_to_num(self.carried[family, on]))
+            weights = np.column_stack((self.width[on], self.width[on] * is_given, self.width[on] * carried))
+            span, sums = touching_pieces(self.lo[j, on], self.hi[j, on], self.at[j, on] - half[on],
+                                         self.at[j, on] + half[on], weights, self.lo[j, c], self.hi[j, c], gap)
             n_broken[mine] = np.rint(span / self.spacing[family]).astype(np.int64)
-        return n_broken
+            total = np.maximum(sums[:, 0], np.finfo(float).tiny)
+            given[mine] = sums[:, 1] / total
+            shed[mine] = sums[:, 2] / np.maximum(sums[:, 0] - sums[:, 1], np.finfo(float).tiny)
+        return n_broken, given, shed
 
     def summary(self) -> dict:
         """:meth:`YarnTip.summary` with, per family, ``concentration_joined``: the cells that joined

@@ -1,0 +1,145 @@
+"""The shear-lag tip (fabric_fenicsx.fem.shear_lag): Hedgepeth's concentration beside n broken
+yarns, the broken yarns counted in yarn spacings whatever the cells, and a tip that breaks when its
+yarn's concentrated stretch reaches the segment's law, not when its own strain does."""
+
+import numpy as np
+import pytest
+
+from fabric_fenicsx.fem.shear_lag import ShearLag, hedgepeth_concentration, touching_pieces
+from fabric_fenicsx.fem.yarn_crack import TIP, UNCRACKED
+from fabric_fenicsx.material.fabric import zylon_as
+
+X, Y = np.array([1.0, 0.0]), np.array([0.0, 1.0])
+N = 15
+
+
+def _grid(n: int, h: float) -> np.ndarray:
+    """Corners (n*n, 4, 2) of n x n squares of side h from the origin; cell i * n + j at column i, row j."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    return np.stack([np.column_stack(((i + a) * h, (j + b) * h)) for a, b in ((0, 0), (1, 0), (1, 1), (0, 1))],
+                    axis=1).astype(float)
+
+
+def cell(i: int, j: int) -> int:
+    return i * N + j
+
+
+def test_hedgepeths_factors_and_their_crack_like_growth():
+    """K_1 = 4/3, K_2 = 8/5, K_3 = 64/35 (Hedgepeth 1961, Table 1); for many broken yarns the
+    product grows as sqrt(pi (n + 1) / 4), the square root of a crack's length."""
+    assert hedgepeth_concentration([0, 1, 2, 3]) == pytest.approx([1.0, 4 / 3, 8 / 5, 64 / 35], rel=1e-14)
+    K = hedgepeth_concentration(np.array([100, 400]))
+    assert K / np.sqrt(np.pi * np.array([101, 401]) / 4) == pytest.approx([1.0, 1.0], abs=2e-3)
+    with pytest.raises(ValueError, match="integer >= 0"):
+        hedgepeth_concentration([-1])
+    with pytest.raises(ValueError, match="integer >= 0"):
+        hedgepeth_concentration([1.5])
+
+
+def test_a_tip_counts_the_broken_piece_it_ends_or_the_two_it_bridges():
+    lo, hi = np.array([0.0, 1.0, 2.0, 5.0]), np.array([1.0, 2.0, 3.0, 6.0])    # pieces [0, 3], [5, 6]
+    weights = np.array([[1.0], [2.0], [3.0], [10.0]])
+    span, sums = touching_pieces(lo, hi, lo, hi, weights, np.array([3.0, 4.0, 3.0, 7.5]),
+                                 np.array([4.0, 5.0, 5.0, 8.5]), 1e-9)
+    assert span == pytest.approx([3.0, 1.0, 4.0, 0.0])
+    assert sums[:, 0] == pytest.approx([6.0, 10.0, 16.0, 0.0])
+
+
+def test_the_broken_yarns_are_counted_in_yarn_spacings_whatever_the_cells():
+    """A 6 mm slit is 8 yarns at Zylon's 0.726 mm spacing, cut as three 2 mm cells or as six 1 mm
+    cells."""
+    counts = []
+    for h, k in ((2e-3, 3), (1e-3, 6)):
+        rule = ShearLag.on_cells(_grid(N, h), (X, Y), zylon_as())
+        rule.add_crack([i * N + 0 + j for i in (7,) for j in range(k)], 0, 7.5 * h)
+        counts.append(rule._broken_yarns(0, np.array([7 * N + k]), np.array([7.5 * h]))[0][0])
+    spacing = 2 * zylon_as().fill.w
+    assert counts == [round(6e-3 / spacing)] * 2
+
+
+class HalvingSurrogate:
+    """A stand-in for the surrogate's damage update: a yarn whose strain passes its critical
+    strain (mu_crit - 1) keeps ``keep`` of its fibrils."""
+
+    def __init__(self, keep: float = 0.5):
+        self.keep = keep
+
+    def update(self, E1, E2, a1, a2, critical_stretch, softening_scale):
+        b1 = np.where(E1 > critical_stretch[0] - 1.0, self.keep * a1, a1)
+        b2 = np.where(E2 > critical_stretch[1] - 1.0, self.keep * a2, a2)
+        return np.zeros_like(E1), np.zeros_like(E1), b1, b2
+
+    def evaluate(self, E1, E2, a1, a2):
+        """The yarns' stretches: 1 + E."""
+        return np.zeros_like(E1), np.zeros_like(E1), 1.0 + E1, 1.0 + E2
+
+
+def _slit_rule(h=2e-3):
+    rule = ShearLag.on_cells(_grid(N, h), (X, Y), zylon_as())
+    rule.add_crack([cell(7, 0), cell(7, 1), cell(7, 2)], 0, 7.5 * h)   # 6 mm across the warp: n = 8
+    return rule
+
+
+def _step(rule, row: float, tip: float, surrogate=None, a_old=None):
+    """One damage update with the warp strain of row 3 (the tip's yarn) at ``row`` and of the tip
+    cell (7, 3) at ``tip`` (fractions of the segment's critical strain), the rest at half."""
+    surrogate = surrogate or HalvingSurrogate()
+    points = np.arange(N * N)
+    full = rule.base[0][0, 0] - 1.0
+    E1 = np.full(N * N, 0.5 * full)
+    E1[[cell(i, 3) for i in range(N)]] = row * full
+    E1[cell(7, 3)] = tip * full
+    a_old = np.ones((2, N * N)) if a_old is None else a_old
+    b_new = np.stack(surrogate.update(E1, np.zeros(N * N), a_old[0], a_old[1], *rule.laws(points).values())[2:])
+    return rule.admit(surrogate, points, E1, np.zeros(N * N), a_old, b_new)
+
+
+def test_the_tip_breaks_when_its_yarns_concentrated_stretch_reaches_the_segments_law():
+    """Beside 8 broken yarns K = 2.70: a yarn at 0.45 of the segment's critical strain breaks the
+    tip though the tip cell's own strain is below its law; at 0.35 it does not, though the tip
+    cell's own strain (the cells' concentration) is past it."""
+    assert hedgepeth_concentration(8) == pytest.approx(2.6958, abs=1e-4)
+    rule = _slit_rule()
+    b, redo = _step(rule, 0.45, 0.45)
+    assert rule.kind[0, cell(7, 3)] == TIP and b[0, cell(7, 3)] == 0.5 and cell(7, 3) in redo
+    assert rule.summary()["warp"]["concentration_joined"] == 1
+    assert rule.summary()["warp"]["largest_broken_yarns"] == 8
+    rule = _slit_rule()
+    b, redo = _step(rule, 0.35, 1.25)
+    assert rule.kind[0, cell(7, 3)] == UNCRACKED and b[0, cell(7, 3)] == 1.0 and cell(7, 3) in redo
+
+
+def test_a_joined_tip_lengthens_the_crack_only_once_it_has_broken():
+    """The next cell on the line waits while the tip it would follow keeps more than half its
+    fibrils, and is counted beside 8 + 3 broken yarns once that tip has broken."""
+    rule = _slit_rule()
+    a = np.ones((2, N * N))
+    b, _ = _step(rule, 0.45, 0.45, HalvingSurrogate(0.8), a)
+    assert rule.kind[0, cell(7, 3)] == TIP and b[0, cell(7, 3)] == pytest.approx(0.8)
+    n = rule._broken_yarns(0, np.array([cell(7, 4)]), np.array([7.5 * 2e-3]))[0][0]
+    assert n == 0                                          # (7, 3) joined, not broken: (7, 4) touches nothing broken
+    a[0, cell(7, 3)] = 0.4
+    _step(rule, 0.45, 0.45, HalvingSurrogate(0.8), a)      # the step sees (7, 3) broken
+    n, given, shed = (x[0] for x in rule._broken_yarns(0, np.array([cell(7, 4)]), np.array([7.5 * 2e-3])))
+    assert given == pytest.approx(0.75) and shed == pytest.approx(0.45 * (rule.base[0][0, 0] - 1.0))
+    assert n == round(8e-3 / (2 * zylon_as().fill.w))
+
+
+def test_broken_yarns_that_carried_nothing_shed_nothing():
+    """Hedgepeth's factor holds for yarns that all carried the tip's load; a crack whose yarns
+    broke slack (carried stretch 0) adds nothing to the tip's (K - 1) x their mean, so the tip at
+    0.45 of its strength holds where the same crack as a slit (its yarns counted as loaded like
+    the tip's) breaks it."""
+    rule = ShearLag.on_cells(_grid(N, 2e-3), (X, Y), zylon_as())
+    slack = [cell(7, 0), cell(7, 1), cell(7, 2)]
+    rule.kind[0, slack], rule.line[0, slack], rule.carried[0, slack] = TIP, 7.5 * 2e-3, 0.0
+    rule._cracks_added(0, np.array(slack))
+    rule.broken[0, slack] = True
+    a = np.ones((2, N * N))
+    a[0, slack] = 0.0
+    _step(rule, 0.45, 0.45, a_old=a)
+    assert rule.kind[0, cell(7, 3)] == UNCRACKED
+    rule.carried[0, slack] = 0.8 * (rule.base[0][0, 0] - 1.0)   # loaded nearly like the tip's
+    _step(rule, 0.45, 0.45, a_old=a)
+    assert rule.kind[0, cell(7, 3)] == TIP
