@@ -16,27 +16,34 @@ length over which the concentration decays along the yarn, here not resolved. Th
 concentration from there and the strain from the yarn:
 
 * **The tip** (a live cell not cracked in family i, crossed by the line of a crack of family i and
-  touching that crack's broken part): it joins the crack when its yarn's stretch, at the strain
-  read along the yarn away from it (:meth:`YarnTip.yarn_strain
-  <fabric_fenicsx.fem.yarn_tip.YarnTip.yarn_strain>`, the median over a band one cell wide) and
-  concentrated as 1 + K_n (mu_i - 1), damages the yarn at the segment's law (Eq. 2-25, the
-  strength of its root), whatever its own strains do. n = round(a / s): a the length across the
-  yarns of the crack's broken part that the tip touches, s the spacing of the yarns of family i
-  (the other family's unit-cell length, 0.726 mm for Zylon AS). A cell damaged by its own strains
-  but not by its yarn's concentrated stretch is held (its new damage taken back).
-* **The crack**: a joined cell softens by its own strains with the law of equal energy of the
-  yarn crack (one segment's work per yarn cut, :mod:`fabric_fenicsx.fem.yarn_crack`), started at
-  its stretch when it joins if that lies below the law's start; it counts as broken, and so
-  lengthens the crack for the next tip, once its alpha_i is at most 1/2 (or it is removed). A crack
-  therefore grows by one cell at a time, each after the one before has opened.
+  touching that crack's broken part): it joins the crack when its yarn's stretch mu_i, at the
+  strains read along the yarn away from it (both families' by :meth:`YarnTip.yarn_strain
+  <fabric_fenicsx.fem.yarn_tip.YarnTip.yarn_strain>`, the median over a band one cell wide),
+  raised by the load the broken yarns shed,
+
+      mu*_i - 1 = (mu_i - 1) + (K_n - 1) c,
+
+  damages the yarn at the segment's law (Eq. 2-25, the strength of its root), whatever its own
+  strains do. n = round(a / s): a the length across the yarns of the crack's broken part that the
+  tip touches, s the spacing of the yarns of family i (the other family's unit-cell length, 0.726
+  mm for Zylon AS); c the mean stretch mu_i - 1 those broken yarns carried as they joined (a
+  slit's yarns count as loaded like the tip's: c = mu_i - 1). Under a uniform load c = mu_i - 1
+  and mu*_i - 1 = K_n (mu_i - 1), Hedgepeth's; where the broken yarns carried less (a crack run
+  out of the loaded region) they shed less. A cell damaged by its own strains but not by its
+  yarn's raised stretch is held (its new damage taken back).
+* **The crack**: a joined cell is damaged at least as its yarn's raised stretch damages it, until
+  it counts as broken (alpha_i at most 1/2, or removed), and also softens by its own strains with
+  the yarn crack's law of equal energy (:mod:`fabric_fenicsx.fem.yarn_crack`). Only broken cells
+  lengthen the crack for the next tip: a crack grows by one cell at a time, each after the one
+  before has opened.
 * **A crack's start** (a root) waits for its yarn's strain to reach the segment's law
   (``yarn_strain``): K_0 = 1.
 
 In the membrane the cut yarns' load goes to the whole net section (every uncut yarn carries its
 strain); K_n then multiplies that net-section stretch, so a finite panel's factor W / (W - a) is
 counted on top of Hedgepeth's, whose far field is an infinite sheet's. The concentration is the
-static one (the dynamic overshoot after a sudden break, up to 1.27 for n = 1 in Hedgepeth's
-paper, is left out), and it assumes the crossings pass load as a shear lag, without slip: a
+static one (the dynamic overshoot after a sudden break, which Hedgepeth's paper also treats, is
+left out), and it assumes the crossings pass load as a shear lag, without slip: a
 fabric whose crossings slip (the del zone of a tear) concentrates less. A candidate, not the
 scenes' default. One rank, as the yarn crack.
 """
@@ -161,7 +168,7 @@ class ShearLag(YarnTip):
     def _concentrated(self, family, surrogate, points, cell_of, live, E1, E2, a_old):
         """(at, damage): the positions (into ``points``) of the tips of ``family``'s cracks and of
         its crack cells not yet broken, and the damage of family ``family`` there at their yarn's
-        concentrated stretch (module docstring, the segment's law); the tips it damages join."""
+        raised stretch mu* (module docstring, the segment's law); the tips it damages join."""
         none = (np.zeros(0, np.int64), np.zeros(0))
         near = self.near[family] & live & ~self.broken[family]
         candidates = np.flatnonzero(near & (self.kind[family] == UNCRACKED))
