@@ -97,7 +97,7 @@ def touching_pieces(lo, hi, length_lo, length_hi, weights, at_lo, at_hi, gap):
 
 
 class ShearLag(YarnTip):
-    """The yarn crack whose tips break by Hedgepeth's concentration of their yarn's stretch
+    """The yarn crack whose tips break by their yarn's stretch raised by Hedgepeth's concentration
     (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
     def __init__(self, corners, directions, *args, **kwargs):
@@ -109,11 +109,10 @@ class ShearLag(YarnTip):
         self.joined = np.zeros(2, np.int64)        # cells that joined by the concentration, per family
         self.largest = np.zeros(2, np.int64)       # the largest n a joining tip saw, per family
         self.carried = np.full((2, n), np.nan)     # mu_i - 1 a crack cell's yarn carried as it joined
-        spacing = self.segment[::-1]               # family i's yarns lie the other family's segment apart
-        self.spacing = spacing
+        self.spacing = self.segment[::-1]          # family i's yarns lie the other family's segment apart
         extent = np.array([np.ptp(self.at[1 - i]) + self.width.max(initial=0.0) for i in range(2)])
-        self.k_max = hedgepeth_concentration(np.ceil(extent / spacing).astype(np.int64))
-        # the lowest critical stretch a concentrated law takes: the weakest segment's under the largest K
+        self.k_max = hedgepeth_concentration(np.ceil(extent / self.spacing).astype(np.int64))
+        # the lowest critical stretch a raised law takes: the weakest segment's under the largest K
         self.mu_floor = 1.0 + (self.base[0].min(axis=1, initial=np.inf) - 1.0) / self.k_max
 
     def damage_range(self):
@@ -131,14 +130,15 @@ class ShearLag(YarnTip):
             self.broken[family, cells[self.kind[family, cells] == GIVEN]] = True   # a slit
 
     def _tips_ready(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
-        # the tips the concentration lets join have joined before the base class looks (admit)
+        # the tips whose yarn's raised stretch breaks them joined in admit before the base class
+        # asks; these are damaged by their own strains only, and wait
         self.tips_held[family] += len(tips)
         return np.zeros(len(tips), dtype=bool)
 
     def admit(self, surrogate, points, E1, E2, a_old, b_new):
-        """:meth:`YarnCrack.admit`, with the tips that their yarn's concentrated stretch damages
-        joined first, and every crack cell not yet broken damaged at least as that stretch
-        damages it (module docstring)."""
+        """:meth:`YarnCrack.admit`, with the tips that their yarn's raised stretch damages joined
+        first, and every crack cell not yet broken damaged at least as that stretch damages it
+        (module docstring)."""
         cell_of = points // self.npc
         live = np.bincount(cell_of, minlength=self.centres.shape[0]) > 0
         driven = []
@@ -146,10 +146,10 @@ class ShearLag(YarnTip):
             opened = (self.kind[i] != UNCRACKED) & ~self.broken[i]
             self.broken[i] |= opened & ~live
             self.broken[i, cell_of[opened[cell_of] & (a_old[i] <= BROKEN_ALPHA)]] = True
-            driven.append(self._concentrated(i, surrogate, points, cell_of, live, E1, E2, a_old))
+            driven.append(self._raised(i, surrogate, points, cell_of, live, E1, E2, a_old))
         before = self.kind == ROOT
         b, redo = super().admit(surrogate, points, E1, E2, a_old, b_new)
-        self._record_roots(np.argwhere((self.kind == ROOT) & ~before), surrogate, points, cell_of, E1, E2)
+        self._record_roots(np.argwhere((self.kind == ROOT) & ~before), surrogate, cell_of, E1, E2)
         more = [redo]
         for i, (at, damage) in enumerate(driven):
             lower = damage < b[i, at]
@@ -157,7 +157,7 @@ class ShearLag(YarnTip):
             more.append(at[lower])
         return b, np.unique(np.concatenate(more))
 
-    def _record_roots(self, started, surrogate, points, cell_of, E1, E2) -> None:
+    def _record_roots(self, started, surrogate, cell_of, E1, E2) -> None:
         """The stretch mu_i - 1 that each new root's yarn carried as it started (its own strains,
         the yarns intact)."""
         for family, c in started:
@@ -165,7 +165,7 @@ class ShearLag(YarnTip):
             mu = surrogate.evaluate(E1[at], E2[at], np.ones(at.size), np.ones(at.size))[2 + family]
             self.carried[family, c] = float(np.mean(mu)) - 1.0
 
-    def _concentrated(self, family, surrogate, points, cell_of, live, E1, E2, a_old):
+    def _raised(self, family, surrogate, points, cell_of, live, E1, E2, a_old):
         """(at, damage): the positions (into ``points``) of the tips of ``family``'s cracks and of
         its crack cells not yet broken, and the damage of family ``family`` there at their yarn's
         raised stretch mu* (module docstring, the segment's law); the tips it damages join."""
@@ -241,7 +241,7 @@ class ShearLag(YarnTip):
 
     def summary(self) -> dict:
         """:meth:`YarnTip.summary` with, per family, ``concentration_joined``: the cells that joined
-        a crack by their yarn's concentrated stretch, and ``largest_broken_yarns``: the largest n
+        a crack by their yarn's raised stretch, and ``largest_broken_yarns``: the largest n
         a joining tip saw."""
         out = super().summary()
         for i, name in enumerate(("warp", "fill")):

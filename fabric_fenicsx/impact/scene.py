@@ -177,8 +177,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "(fabric_fenicsx.fem.yarn_crack; one rank, damage on); yarn_tip = the yarn crack "
                        "whose tip runs on when its yarn, read along it, reaches the segment's strength "
                        "(fabric_fenicsx.fem.yarn_tip); yarn_strain = the same for a crack's start too; "
-                       "shear_lag = yarn_strain whose tip breaks when its yarn's stretch times Hedgepeth's "
-                       "concentration beside the crack's broken yarns reaches the segment's strength "
+                       "shear_lag = yarn_strain whose tip breaks when its yarn's stretch, raised by the load the "
+                       "crack's broken yarns shed (Hedgepeth's shear-lag factor), reaches the segment's strength "
                        "(fabric_fenicsx.fem.shear_lag)"),
         "surrogate_cache": Key("", optional_text,
                                "directory of the surrogate's tile cache (\"\" = its default)"),

@@ -110,8 +110,8 @@ def build_strength_field(scene: Scene, fabric: Fabric, membrane, comm):
 
 
 def _yarn_crack(scene: Scene, fabric: Fabric, membrane, laws, comm):
-    """The yarn-crack rule (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`, or for ``yarn_tip``
-    and ``yarn_strain`` :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`) on the membrane's cells,
+    """The crack-tracking rule ``material.failure`` names
+    (:data:`~fabric_fenicsx.fem.crack_rules.CRACK_RULES`) on the membrane's cells,
     over the points' segment laws ``laws`` (None: the fabric's)."""
     from fabric_fenicsx.fem.membrane import yarn_directions
 

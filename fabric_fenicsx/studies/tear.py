@@ -9,7 +9,7 @@ the fill yarns along the slit kept, a crack band as a broken warp leaves it). Th
 reduced element with its hourglass control, the surrogate, the damping and the removal rules
 (deletion when both yarns are broken, erosion at ``erosion_strain``) are the impact scenes'; the
 failure rule is the thesis's or a candidate (``failure``: ``yarn_crack``, ``yarn_tip``,
-``yarn_strain``, ``yarn_average``).
+``yarn_strain``, ``shear_lag``, ``yarn_average``).
 
 The panel is meshed with cells of one size ``h`` (the tear's tip meets the same cells all the
 way) in families that tell the cells' orientation from their shape:
@@ -314,8 +314,7 @@ class TearTest:
         return self._average
 
     def crack_rule(self, laws=None):
-        """The crack-tracking rule of this setup (:class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`,
-        or :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip` for ``yarn_tip`` and ``yarn_strain``) on
+        """The crack-tracking rule of this setup (:data:`~fabric_fenicsx.fem.crack_rules.CRACK_RULES`) on
         this mesh with the cell laws ``laws`` (None: the fabric's), the slit given as a crack of
         the warp."""
         rule = crack_rule_on_cells(self.setup.failure, self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
