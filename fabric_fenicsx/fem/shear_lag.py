@@ -190,7 +190,8 @@ class ShearLag(YarnTip):
         at = np.flatnonzero(np.isin(cell_of, cells))
         where = np.searchsorted(cells, cell_of[at])
         e = [far[0][where], far[1][where]]
-        # mu* - 1 = a (mu - 1) + b as the segment's law of mu: critical 1 + (m - b) / a, scale s / a
+        # mu* - 1 = a (mu - 1) + b as the segment's law of mu: critical 1 + (m - b) / a, scale s / a;
+        # where the shed load b alone passes the strength m the law starts at the table's floor
         K = hedgepeth_concentration(n_broken)[where]
         a = 1.0 + (K - 1.0) * given[where]
         b = (K - 1.0) * (1.0 - given[where]) * shed[where]
