@@ -122,12 +122,11 @@ class ShearLag(YarnTip):
         out.mu_crit_min[:] = np.minimum(out.mu_crit_min, self.mu_floor)
         return out
 
-    def _cracks_added(self, family: int, cells: np.ndarray) -> None:
-        super()._cracks_added(family, cells)
-        if cells.size:
-            near = self.tree.query_ball_point(self.centres[cells], self._reach)
-            self.near[family, np.unique(np.concatenate([np.asarray(k, np.int64) for k in near]))] = True
-            self.broken[family, cells[self.kind[family, cells] == GIVEN]] = True   # a slit
+    def _cracks_added(self, family: int, cells: np.ndarray) -> np.ndarray:
+        near = super()._cracks_added(family, cells)
+        self.near[family, near] = True
+        self.broken[family, cells[self.kind[family, cells] == GIVEN]] = True   # a slit
+        return near
 
     def _tips_ready(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
         # the tips whose yarn's raised stretch breaks them joined in admit before the base class
@@ -159,11 +158,17 @@ class ShearLag(YarnTip):
 
     def _record_roots(self, started, surrogate, cell_of, E1, E2) -> None:
         """The stretch mu_i - 1 that each new root's yarn carried as it started (its own strains,
-        the yarns intact)."""
-        for family, c in started:
-            at = np.flatnonzero(cell_of == c)
-            mu = surrogate.evaluate(E1[at], E2[at], np.ones(at.size), np.ones(at.size))[2 + family]
-            self.carried[family, c] = float(np.mean(mu)) - 1.0
+        the yarns intact; the mean over its points): ``started`` rows (family, cell)."""
+        for family in range(2):
+            cells = started[started[:, 0] == family, 1]
+            if cells.size == 0:
+                continue
+            at = np.flatnonzero(np.isin(cell_of, cells))
+            ones = np.ones(at.size)
+            mu = surrogate.evaluate(E1[at], E2[at], ones, ones)[2 + family]
+            where = np.searchsorted(cells, cell_of[at])
+            self.carried[family, cells] = np.bincount(where, weights=mu, minlength=cells.size) / \
+                np.bincount(where, minlength=cells.size) - 1.0
 
     def _raised(self, family, surrogate, points, cell_of, live, E1, E2, a_old):
         """(at, damage): the positions (into ``points``) of the tips of ``family``'s cracks and of
@@ -185,8 +190,8 @@ class ShearLag(YarnTip):
         cells, line, n_broken, given, shed = (x[keep][order] for x in (cells, line, n_broken, given, shed))
         count = np.bincount(cell_of, minlength=self.centres.shape[0])
         # both strains of the yarn's band: the fill's strain sets the warp's crimp (Eq. 2-17 ff.)
-        far = [self.yarn_strain(family, cells, np.bincount(cell_of, weights=E, minlength=count.size)
-                                / np.maximum(count, 1), live) for E in (E1, E2)]
+        far = self.yarn_strain(family, cells, np.stack([np.bincount(cell_of, weights=E, minlength=count.size)
+                                                        for E in (E1, E2)]) / np.maximum(count, 1), live)
         at = np.flatnonzero(np.isin(cell_of, cells))
         where = np.searchsorted(cells, cell_of[at])
         e = [far[0][where], far[1][where]]

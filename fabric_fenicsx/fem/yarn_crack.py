@@ -176,10 +176,11 @@ class YarnCrack:
         """The damage laws of ``points`` (indices or a slice) for the surrogate's update."""
         return {"critical_stretch": self.mu_crit[:, points], "softening_scale": self.scale[:, points]}
 
-    def _cracks_added(self, family: int, cells: np.ndarray) -> None:
+    def _cracks_added(self, family: int, cells: np.ndarray) -> np.ndarray:
         """Record the newly cracked ``cells`` of ``family`` (:meth:`new_cracks`) and mark stale the
         classification of every cell whose neighbourhood may hold one of them (all within the
-        largest radius: a superset)."""
+        largest radius: a superset); returns those cells (with repeats)."""
+        near = np.zeros(0, np.int64)
         if cells.size:
             n = cells.size
             self._joined.append(np.column_stack((np.full(n, self.time), np.full(n, family),
@@ -190,6 +191,7 @@ class YarnCrack:
             self._stale[family, near] = True
             back = near[self._on_segment[family, near] & (self.kind[family, near] == UNCRACKED)]
             self._use_law(family, np.unique(back), segment=False)
+        return near
 
     def _use_law(self, family: int, cells: np.ndarray, segment: bool) -> None:
         """Ask the points of ``cells`` with the segment's law (``segment``) or the tip's for

@@ -73,15 +73,20 @@ class YarnTip(YarnCrack):
     def yarn_strain(self, family: int, cells: np.ndarray, E_cell: np.ndarray, live: np.ndarray) -> np.ndarray:
         """Ebar_i of the module docstring for ``cells``, from the cells' strains ``E_cell`` of
         ``family`` (n_cells,) and the mask of live cells ``live``; a cell's own strain where its
-        band holds no other cell."""
+        band holds no other cell. ``E_cell`` may be (k, n_cells): k quantities read over the same
+        band, (k, len(cells)) returned."""
         other, owner = self.neighbourhoods(cells)
         d = self.centres[other] - self.centres[cells[owner]]
         t = self.directions[family]
         along, across = d @ t, d @ np.array([-t[1], t[0]])
         keep = ((other != cells[owner]) & live[other] & (self.kind[family, other] == UNCRACKED)
                 & (np.abs(along) <= self.radius[cells[owner]]) & (np.abs(across) <= 0.5 * self.width[cells[owner]]))
-        median, count = grouped_median(E_cell[other[keep]], owner[keep], cells.size)
-        return np.where(count > 0, median, E_cell[cells])
+        values = np.atleast_2d(E_cell)
+        out = np.empty((values.shape[0], cells.size))
+        for k, value in enumerate(values):
+            median, count = grouped_median(value[other[keep]], owner[keep], cells.size)
+            out[k] = np.where(count > 0, median, value[cells])
+        return out if np.ndim(E_cell) == 2 else out[0]
 
     def _tips_ready(self, family: int, tips, surrogate, points, E1, E2, a_old) -> np.ndarray:
         ready = self._yarn_reaches_segment(family, tips, surrogate, points, E1, E2, a_old)
