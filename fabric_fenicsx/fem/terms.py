@@ -323,7 +323,7 @@ def shape_gradients(X: np.ndarray, degree: int = 2) -> tuple[np.ndarray, np.ndar
     J = np.einsum("caI,jqa->cqIj", X, dN)                           # dX_I / dxi_j
     detJ = np.abs(J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0])   # either orientation
     if not np.all(detJ > 0):
-        raise ValueError("fluctuation_matrices: a degenerate quadrilateral (zero Jacobian at a "
+        raise ValueError("shape_gradients: a degenerate quadrilateral (zero Jacobian at a "
                          "Gauss point): fix the mesh")
     grad = np.einsum("jqa,cqjI->cqaI", dN, np.linalg.inv(J))        # Grad N_a at the points
     return N, grad, detJ * weights
