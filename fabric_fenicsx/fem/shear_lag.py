@@ -51,14 +51,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabric_fenicsx.fem.yarn_crack import GIVEN, ROOT, TIP, UNCRACKED
+from fabric_fenicsx.fem.yarn_crack import BROKEN_ALPHA, GIVEN, ROOT, TIP, UNCRACKED
 from fabric_fenicsx.fem.yarn_tip import YarnTip
 
-__all__ = ["hedgepeth_concentration", "ShearLag", "BROKEN_ALPHA"]
-
-BROKEN_ALPHA = 0.5
-"""A cracked cell counts as broken (lengthens its crack for the next tip) at alpha_i <= this, the
-tear test's measure of a broken cell."""
+__all__ = ["hedgepeth_concentration", "ShearLag"]
 
 
 def hedgepeth_concentration(n) -> np.ndarray:

@@ -39,7 +39,7 @@ import numpy as np
 
 from fabric_fenicsx.material.crack_energy import equal_energy_law, softening_moments
 
-__all__ = ["YarnCrack", "EXCLUSION", "CRACK_COLUMNS", "KINDS", "cell_extents"]
+__all__ = ["YarnCrack", "EXCLUSION", "CRACK_COLUMNS", "KINDS", "BROKEN_ALPHA", "cell_extents"]
 
 EXCLUSION = 3.0
 """Radius of a cell's neighbourhood, in units of its diameter (longest corner-to-corner
@@ -47,6 +47,11 @@ distance): the cracked cells nearer than this decide whether it may soften, and 
 starts only farther away. On a mesh not aligned with the yarns the strain beside a crack's tip
 can exceed that on its line a few cells away: with 1.5 diameters a second crack started 2.5 mm
 beside the first ahead of its tip on the 30-degree 1 mm tear-test mesh; 3 hold it on the line."""
+
+BROKEN_ALPHA = 0.5
+"""A cell's yarn family counts as broken once its alpha (the fraction of fibrils left) reaches
+this: the tear test's measure of a broken cell, and when a crack cell lengthens its crack for the
+shear-lag tip (:mod:`fabric_fenicsx.fem.shear_lag`)."""
 
 UNCRACKED, ROOT, TIP, GIVEN = 0, 1, 2, 3
 """What a cell is in a family's crack: not cracked; the start of a crack (the segment's law);

@@ -42,16 +42,13 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from fabric_fenicsx.fem.crack_rules import CRACK_RULES, crack_rule_on_cells
+from fabric_fenicsx.fem.yarn_crack import BROKEN_ALPHA
 
 FAILURE_RULES = ("thesis", "yarn_average", *CRACK_RULES)
 """The failure rules a pull can use: the scenes' (``material.failure``) and the yarn average."""
 
 __all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "near_tip_cells", "tip_concentration",
            "path_angle", "work_per_length", "TearTest"]
-
-BROKEN_ALPHA = 0.5
-"""A cell is broken once its warp alpha (the fraction of fibrils left) falls below this."""
-
 
 @dataclass(frozen=True)
 class TearSetup:
