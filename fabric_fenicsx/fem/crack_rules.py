@@ -1,14 +1,14 @@
 """The crack-tracking failure rules by name (``material.failure``, ``study tear --failure``)."""
 from __future__ import annotations
 
-from fabric_fenicsx.fem.shear_lag import ShearLag
+from fabric_fenicsx.fem.shear_lag import SLIP_CONCENTRATION, ShearLag
 from fabric_fenicsx.fem.yarn_crack import YarnCrack
 from fabric_fenicsx.fem.yarn_tip import YarnTip
 
 __all__ = ["CRACK_RULES", "crack_rule_on_cells"]
 
 CRACK_RULES = {"yarn_crack": (YarnCrack, {}), "yarn_tip": (YarnTip, {}), "yarn_strain": (YarnTip, {"roots": True}),
-               "shear_lag": (ShearLag, {})}
+               "shear_lag": (ShearLag, {}), "del_zone": (ShearLag, {"concentration_cap": SLIP_CONCENTRATION})}
 """Name -> (class, options): the yarn crack (:mod:`~fabric_fenicsx.fem.yarn_crack`), its tip that
 reads its yarn (:mod:`~fabric_fenicsx.fem.yarn_tip`; ``yarn_strain``: its start too), and its tip
 that breaks by Hedgepeth's concentration of its yarn (:mod:`~fabric_fenicsx.fem.shear_lag`)."""

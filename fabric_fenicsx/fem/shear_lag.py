@@ -54,7 +54,11 @@ import numpy as np
 from fabric_fenicsx.fem.yarn_crack import BROKEN_ALPHA, GIVEN, ROOT, TIP, UNCRACKED
 from fabric_fenicsx.fem.yarn_tip import YarnTip
 
-__all__ = ["hedgepeth_concentration", "ShearLag"]
+__all__ = ["hedgepeth_concentration", "SLIP_CONCENTRATION", "ShearLag"]
+
+SLIP_CONCENTRATION = 2.0
+"""The largest factor on a yarn beside broken ones where the crossings slip (module docstring,
+"The del zone")."""
 
 
 def hedgepeth_concentration(n) -> np.ndarray:
@@ -96,9 +100,12 @@ class ShearLag(YarnTip):
     """The yarn crack whose tips break by their yarn's stretch raised by Hedgepeth's concentration
     (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
-    def __init__(self, corners, directions, *args, **kwargs):
+    def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, **kwargs):
+        if not concentration_cap >= 1.0:
+            raise ValueError(f"the concentration's cap must be at least 1, got {concentration_cap!r}")
         kwargs.setdefault("roots", True)
         super().__init__(corners, directions, *args, **kwargs)
+        self.cap = float(concentration_cap)
         n = self.centres.shape[0]
         self.broken = np.zeros((2, n), dtype=bool)
         self.near = np.zeros((2, n), dtype=bool)   # within the largest radius of a crack of the family
@@ -107,9 +114,13 @@ class ShearLag(YarnTip):
         self.carried = np.full((2, n), np.nan)     # mu_i - 1 a crack cell's yarn carried as it joined
         self.spacing = self.segment[::-1]          # family i's yarns lie the other family's segment apart
         extent = np.array([np.ptp(self.at[1 - i]) + self.width.max(initial=0.0) for i in range(2)])
-        self.k_max = hedgepeth_concentration(np.ceil(extent / self.spacing).astype(np.int64))
+        self.k_max = self.concentration(np.ceil(extent / self.spacing).astype(np.int64))
         # the lowest critical stretch a raised law takes: the weakest segment's under the largest K
         self.mu_floor = 1.0 + (self.base[0].min(axis=1, initial=np.inf) - 1.0) / self.k_max
+
+    def concentration(self, n) -> np.ndarray:
+        """The factor on the tip's yarn beside ``n`` broken yarns: K_n, at most the cap."""
+        return np.minimum(hedgepeth_concentration(n), self.cap)
 
     def damage_range(self):
         """:meth:`YarnCrack.damage_range`, down to the segment laws under the largest K_n the
@@ -193,7 +204,7 @@ class ShearLag(YarnTip):
         e = [far[0][where], far[1][where]]
         # mu* - 1 = a (mu - 1) + b as the segment's law of mu: critical 1 + (m - b) / a, scale s / a;
         # where the shed load b alone passes the strength m the law starts at the table's floor
-        K = hedgepeth_concentration(n_broken)[where]
+        K = self.concentration(n_broken)[where]
         a = 1.0 + (K - 1.0) * given[where]
         b = (K - 1.0) * (1.0 - given[where]) * shed[where]
         mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()

@@ -170,7 +170,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "erosion_strain": Key(1.0, number(0.0, lo_open=True),
                               "Green strain of a yarn direction beyond which a cell is eroded "
                               "(no longer a unit cell; see docs/impact_model.md)"),
-        "failure": Key("thesis", choice("thesis", "yarn_crack", "yarn_tip", "yarn_strain", "shear_lag"),
+        "failure": Key("thesis", choice("thesis", "yarn_crack", "yarn_tip", "yarn_strain", "shear_lag", "del_zone"),
                        "failure rule (fabric_fenicsx.impact.setup.FAILURE_RULES): thesis = every point "
                        "damages by Eq. 2-25 on its own strains; yarn_crack = a broken yarn family tears "
                        "along the other family with one yarn segment's energy "
@@ -179,7 +179,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "(fabric_fenicsx.fem.yarn_tip); yarn_strain = the same for a crack's start too; "
                        "shear_lag = yarn_strain whose tip breaks when its yarn's stretch, raised by the load the "
                        "crack's broken yarns shed (Hedgepeth's shear-lag factor), reaches the segment's strength "
-                       "(fabric_fenicsx.fem.shear_lag)"),
+                       "(fabric_fenicsx.fem.shear_lag); del_zone = shear_lag whose crossings slip: the factor "
+                       "at most 2"),
         "surrogate_cache": Key("", optional_text,
                                "directory of the surrogate's tile cache (\"\" = its default)"),
         "scatter": Key("none", choice("none", "fibrils", "weibull"),
