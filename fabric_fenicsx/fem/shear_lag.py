@@ -43,9 +43,35 @@ In the membrane the cut yarns' load goes to the whole net section (every uncut y
 strain); K_n then multiplies that net-section stretch, so a finite panel's factor W / (W - a) is
 counted on top of Hedgepeth's, whose far field is an infinite sheet's. The concentration is the
 static one (the dynamic overshoot after a sudden break, which Hedgepeth's paper also treats, is
-left out), and it assumes the crossings pass load as a shear lag, without slip: a
-fabric whose crossings slip (the del zone of a tear) concentrates less. A candidate, not the
-scenes' default. One rank, as the yarn crack.
+left out), and it assumes the crossings pass load as a shear lag, without slip: K_n grows as
+sqrt(pi n / 4) without bound, so a long crack breaks yarns that carry a small part of their
+strength (docs/ballistic_limit.md).
+
+**The del zone** (``material.failure = "del_zone"``: the factor at most
+:data:`SLIP_CONCENTRATION` = 2). A dry fabric's crossings pass load by friction, at most mu V
+at a crossing (V the unit cell's contact force; mu 0.27 between Kevlar fibres, Sec. 4.1 after
+Rebouillat). Where they slip, a broken yarn takes its load T back along its length at that rate, over T / (mu V) crossings, and the intact
+yarns beside it take the load up, and give up any excess again, at the same rate (the crossing
+yarn presses on the broken and the intact yarn alike). On every line across the yarns the
+intact yarns' excess equals the broken yarns' deficit; with excesses that fall monotonically
+away from the crack, none can exceed what the broken yarns' recovery length lets it gather,
+T: the yarn beside the crack carries at most twice the load a broken yarn carried, and the
+load of n broken yarns spreads over at least n intact ones (the del zone of a fabric's tear).
+Neither mu nor V is left in the bound. The factor is Hedgepeth's while the crossings hold (K_n
+< 2 for n <= 3) and 2 from n = 4 broken yarns on. A bound, not the slip zone solved (that
+needs the crossings' shear stiffness, not in the stored sources).
+
+The del zone's crack cells also **snap** (``snap``): a cell that joins a crack (a start, or a
+tip) breaks, alpha_i at most 1/2, in the step it joins. Its yarn has reached the segment's law,
+the peak of the segment's force (Eq. 2-25); a segment of a yarn many segments long cannot soften
+stably past that peak, since the rest of the yarn, unloading, gives up more energy than the
+segment's softening takes (the weakest link of the thesis's fibril bundle, Sec. 2.3). Without
+it a joined cell softens only as its yarn's raised stretch, or its own strains, go on rising,
+and how fast the latter rise is the cell's own concentration, a property of the mesh (on the
+tear test a joined tip broke within a step on the aligned grid and after 700 N more on the
+graded mesh, docs/tear_test.md). The rest of its opening follows its own strains with the yarn
+crack's law of equal energy. Both rules are candidates, not the scenes' default. One rank, as
+the yarn crack.
 """
 from __future__ import annotations
 
@@ -100,12 +126,14 @@ class ShearLag(YarnTip):
     """The yarn crack whose tips break by their yarn's stretch raised by Hedgepeth's concentration
     (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
-    def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, **kwargs):
+    def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, snap: bool = False, **kwargs):
         if not concentration_cap >= 1.0:
             raise ValueError(f"the concentration's cap must be at least 1, got {concentration_cap!r}")
         kwargs.setdefault("roots", True)
         super().__init__(corners, directions, *args, **kwargs)
         self.cap = float(concentration_cap)
+        self.snap = bool(snap)
+        """Whether a crack cell breaks (alpha at most 1/2) in the step it joins (module docstring)."""
         n = self.centres.shape[0]
         self.broken = np.zeros((2, n), dtype=bool)
         self.near = np.zeros((2, n), dtype=bool)   # within the largest radius of a crack of the family
@@ -161,6 +189,12 @@ class ShearLag(YarnTip):
             lower = damage < b[i, at]
             b[i, at[lower]] = damage[lower]
             more.append(at[lower])
+        if self.snap:
+            for i in range(2):
+                joined = ((self.kind[i] == ROOT) | (self.kind[i] == TIP)) & ~self.broken[i]
+                at = np.flatnonzero(joined[cell_of] & (b[i] > BROKEN_ALPHA))
+                b[i, at] = BROKEN_ALPHA
+                more.append(at)
         return b, np.unique(np.concatenate(more))
 
     def _record_roots(self, started, surrogate, cell_of, E1, E2) -> None:

@@ -9,7 +9,7 @@ the fill yarns along the slit kept, a crack band as a broken warp leaves it). Th
 reduced element with its hourglass control, the surrogate, the damping and the removal rules
 (deletion when both yarns are broken, erosion at ``erosion_strain``) are the impact scenes'; the
 failure rule is the thesis's or a candidate (``failure``: ``yarn_crack``, ``yarn_tip``,
-``yarn_strain``, ``shear_lag``, ``yarn_average``).
+``yarn_strain``, ``shear_lag``, ``del_zone``, ``yarn_average``).
 
 The panel is meshed with cells of one size ``h`` (the tear's tip meets the same cells all the
 way) in families that tell the cells' orientation from their shape:
@@ -26,7 +26,9 @@ beyond the slit breaks (its warp alpha below 1/2, or removed) and joins the slit
 unit length of tear**, the energy given up by the breaking yarns (damage dissipation plus the
 stored energy of removed cells) while the tear grew, over its length; and the **path's angle**, the principal direction of the centres of the
 tear's cells (the broken cells joined to the slit through broken cells; 90 degrees: along the
-fill yarns, straight across the load); and the **tip concentration**, the warp strain of the
+fill yarns, straight across the load); the **tear strain**, the uncut section's mean warp Green
+strain at the tear load (when the rule tears, apart from the force each mesh carries at that strain:
+a cell's stiffness on a turned grid differs by a few per cent); and the **tip concentration**, the warp strain of the
 tear's first cell over that of the uncut section at half the tear load (:func:`tip_concentration`:
 1 in the thesis's membrane, whose yarns pass no load to each other; what the cells add depends on
 their shape). A tear that follows the yarns has the same load, work and angle on every family;
@@ -406,6 +408,7 @@ class TearTest:
         npc = m.n_points_per_cell
         history, peak, first, elsewhere = [], 0.0, None, None
         tip_samples, concentration = [], math.nan    # (force, near-tip cells' and section's warp strains)
+        tear_strain = math.nan
         end = "time limit"
         while cd.time < t_max:
             cd.step(dt)
@@ -425,13 +428,16 @@ class TearTest:
             broken = (material.alpha1.reshape(-1, npc).min(axis=1) < BROKEN_ALPHA) | ~removal.live_cells
             torn = self.tear_cells(broken)
             length = self.tear_length(torn)
+            if first is None:
+                warp = material.E1.reshape(-1, npc).mean(axis=1)
+                intact = self.section[~broken[self.section]]   # a crack elsewhere is not the section
+                section_strain = warp[intact].mean() if intact.size else math.nan
             if first is None and length > 0.0:
                 f, b, sec = (np.array(x) for x in zip(*tip_samples)) if tip_samples else ([], [], [])
                 concentration = tip_concentration(f, b, sec, force, np.flatnonzero(np.isin(self.near_tip, torn)))
+                tear_strain = float(section_strain)
             elif first is None:
-                warp = material.E1.reshape(-1, npc).mean(axis=1)
-                intact = self.section[~broken[self.section]]   # a crack elsewhere is not the section
-                tip_samples.append((force, warp[self.near_tip], warp[intact].mean() if intact.size else math.nan))
+                tip_samples.append((force, warp[self.near_tip], section_strain))
             e = material.energies()
             history.append((cd.time, force, length, e["damage_dissipation"] + e["erosion_energy"]))
             peak = max(peak, force)
@@ -461,7 +467,7 @@ class TearTest:
                 "work_per_length": work_per_length(hist[:, 2], hist[:, 3]),
                 "tear_length": float(hist[-1, 2]) if hist.size else 0.0,
                 "path_angle": angle, "path_deviation": yarn_deviation(angle) if math.isfinite(angle) else math.nan,
-                "path_spread": spread, "tip_concentration": concentration, "n_tear_cells": int(tear_cells.size),
+                "path_spread": spread, "tip_concentration": concentration, "tear_strain": tear_strain, "n_tear_cells": int(tear_cells.size),
                 "deleted": int(removal.deleted_cells.sum()), "eroded": int(removal.eroded_cells.sum()),
                 "damage_dissipation": e["damage_dissipation"], "erosion_energy": e["erosion_energy"],
                 "viscous_dissipation": e["viscous_dissipation"], "end": end, "steps": cd.n_steps,

@@ -12,11 +12,11 @@ __all__ = ["COLUMNS", "MEMBER_MEASURES", "compare_families", "compare_members", 
 COLUMNS = ("family", "h", "seed", "n_cells", "notch", "tear_load", "peak_force", "work_per_length",
            "tear_length", "path_angle", "path_deviation", "path_spread", "n_tear_cells", "deleted",
            "eroded", "damage_dissipation", "erosion_energy", "viscous_dissipation", "end", "steps", "seconds",
-           "tip_concentration")
+           "tip_concentration", "tear_strain")
 """tear.csv's columns (SI units: N, J/m, m, J, s; angles in degrees from the warp, x; seed -1:
 no strength scatter; ``tip_concentration`` a ratio of strains,
-:func:`~fabric_fenicsx.studies.tear.tip_concentration`; a table written before it had the column
-reads it as NaN)."""
+:func:`~fabric_fenicsx.studies.tear.tip_concentration`; ``tear_strain`` the uncut section's mean
+warp Green strain at the tear load; a table written before it had a column reads it as NaN)."""
 
 AGREEMENT = 0.10
 """The families agree on a measure when its spread (max - min) is within this fraction of its mean."""
@@ -29,14 +29,14 @@ def _spread(values) -> float:
 
 def compare_families(rows: list[dict]) -> dict:
     """Per cell size, over the deterministic rows (seed -1) of every family: the relative spread
-    (max - min) / mean of the tear load, the peak force and the work per length, whether each is
+    (max - min) / mean of the tear load, the peak force, the work per length and the tear strain, whether each is
     within :data:`AGREEMENT`, and the largest deviation of a path from the yarns (degrees)."""
     out = {}
     for h in sorted({r["h"] for r in rows}):
         at = [r for r in rows if r["h"] == h and int(r["seed"]) < 0]
         entry = {"families": [r["family"] for r in at]}
-        for key in ("tear_load", "peak_force", "work_per_length"):
-            s = _spread([r[key] for r in at])
+        for key in ("tear_load", "peak_force", "work_per_length", "tear_strain"):
+            s = _spread([r.get(key, math.nan) for r in at])
             entry[f"{key}_spread"] = s
             entry[f"{key}_agrees"] = bool(s <= AGREEMENT) if math.isfinite(s) else None
         dev = [r["path_deviation"] for r in at if math.isfinite(r["path_deviation"])]
@@ -46,7 +46,7 @@ def compare_families(rows: list[dict]) -> dict:
     return out
 
 
-MEMBER_MEASURES = ("tear_load", "peak_force", "work_per_length", "path_deviation", "tip_concentration")
+MEMBER_MEASURES = ("tear_load", "peak_force", "work_per_length", "path_deviation", "tip_concentration", "tear_strain")
 """The measures :func:`compare_members` averages over a family's strength-scatter members."""
 
 
@@ -77,7 +77,7 @@ def compare_members(rows: list[dict]) -> dict:
                 m = mean_of(r[key] for r in mine if math.isfinite(r.get(key, math.nan)))
                 stats[key] = None if m is None else {"mean": m.mean, "ci95": m.half_width, "n": m.n}
             entry["families"][f] = stats
-        for key in ("tear_load", "peak_force", "work_per_length"):
+        for key in ("tear_load", "peak_force", "work_per_length", "tear_strain"):
             means = [s[key]["mean"] for s in entry["families"].values() if s[key] is not None]
             spread = _spread(means)
             entry[f"{key}_spread"] = spread
@@ -116,9 +116,9 @@ def format_members(comparison: dict) -> str:
             lines.append(f"  {f:<16} n {n:>3}  tear load {_mean_text(s['tear_load'], 0, n)} N, peak "
                          f"{_mean_text(s['peak_force'], 0, n)} N, work {_mean_text(s['work_per_length'], 2, n)} J/m, "
                          f"off yarn {_mean_text(s['path_deviation'], 1, n)} deg, tip concentration "
-                         f"{_mean_text(s.get('tip_concentration'), 3, n)}, torn through {s['torn_through']:.0%}")
+                         f"{_mean_text(s.get('tip_concentration'), 3, n)}, tear strain {_mean_text(s.get('tear_strain'), 4, n)}, torn through {s['torn_through']:.0%}")
         lines.append(f"  spread of the means: tear load {c['tear_load_spread']:.1%}, peak {c['peak_force_spread']:.1%}, "
-                     f"work per length {c['work_per_length_spread']:.1%} (agree within {AGREEMENT:.0%}: "
+                     f"work per length {c['work_per_length_spread']:.1%}, tear strain {c['tear_strain_spread']:.1%} (agree within {AGREEMENT:.0%}: "
                      f"{c['tear_load_agrees']}, {c['peak_force_agrees']}, {c['work_per_length_agrees']})")
         for pair, d in c["paired"].items():
             lines.append(f"  paired {pair}: tear load {_mean_text(d['tear_load'], 0)} N, work "
@@ -129,17 +129,17 @@ def format_members(comparison: dict) -> str:
 def format_report(rows: list[dict], comparison: dict) -> str:
     """A line per mesh, then the families' agreement per size."""
     lines = [f"{'mesh':<22}{'seed':>5}{'cells':>7}{'tear load (N)':>15}{'peak (N)':>10}{'work (J/m)':>12}"
-             f"{'path (deg)':>11}{'off yarn':>9}{'tip conc.':>10}{'removed':>9}{'s':>7}  end"]
+             f"{'path (deg)':>11}{'off yarn':>9}{'tip conc.':>10}{'strain':>8}{'removed':>9}{'s':>7}  end"]
     for r in rows:
         lines.append(f"{r['family'] + ' ' + format(r['h'] * 1e3, 'g') + ' mm':<22}{int(r['seed']):>5}"
                      f"{int(r['n_cells']):>7}{r['tear_load']:>15.1f}{r['peak_force']:>10.1f}"
                      f"{r['work_per_length']:>12.2f}{r['path_angle']:>11.1f}{r['path_deviation']:>9.1f}"
-                     f"{r.get('tip_concentration', math.nan):>10.3f}"
+                     f"{r.get('tip_concentration', math.nan):>10.3f}{r.get('tear_strain', math.nan):>8.4f}"
                      f"{int(r['deleted']) + int(r['eroded']):>9}{r['seconds']:>7.1f}  {r['end']}")
     for size, c in comparison.items():
         lines.append(f"{size}: spread over {', '.join(c['families'])}: tear load {c['tear_load_spread']:.1%}, "
                      f"peak {c['peak_force_spread']:.1%}, work per length {c['work_per_length_spread']:.1%} "
-                     f"(agree within {AGREEMENT:.0%}: {c['tear_load_agrees']}, {c['peak_force_agrees']}, "
+                     f"(tear strain {c['tear_strain_spread']:.1%}) (agree within {AGREEMENT:.0%}: {c['tear_load_agrees']}, {c['peak_force_agrees']}, "
                      f"{c['work_per_length_agrees']}); largest path deviation from the yarns "
                      f"{c['largest_path_deviation']:.1f} deg")
     return "\n".join(lines)

@@ -5,7 +5,8 @@ yarn's concentrated stretch reaches the segment's law, not when its own strain d
 import numpy as np
 import pytest
 
-from fabric_fenicsx.fem.shear_lag import ShearLag, hedgepeth_concentration, touching_pieces
+from fabric_fenicsx.fem.crack_rules import crack_rule_on_cells
+from fabric_fenicsx.fem.shear_lag import SLIP_CONCENTRATION, ShearLag, hedgepeth_concentration, touching_pieces
 from fabric_fenicsx.fem.yarn_crack import TIP, UNCRACKED
 from fabric_fenicsx.material.fabric import zylon_as
 
@@ -75,8 +76,8 @@ class HalvingSurrogate:
         return np.zeros_like(E1), np.zeros_like(E1), 1.0 + E1, 1.0 + E2
 
 
-def _slit_rule(h=2e-3):
-    rule = ShearLag.on_cells(_grid(N, h), (X, Y), zylon_as())
+def _slit_rule(h=2e-3, name="shear_lag"):
+    rule = crack_rule_on_cells(name, _grid(N, h), (X, Y), zylon_as())
     rule.add_crack([cell(7, 0), cell(7, 1), cell(7, 2)], 0, 7.5 * h)   # 6 mm across the warp: n = 8
     return rule
 
@@ -143,3 +144,43 @@ def test_broken_yarns_that_carried_nothing_shed_nothing():
     rule.carried[0, slack] = 0.8 * (rule.base[0][0, 0] - 1.0)   # loaded nearly like the tip's
     _step(rule, 0.45, 0.45, a_old=a)
     assert rule.kind[0, cell(7, 3)] == TIP
+
+
+def test_the_del_zone_caps_the_factor_at_two_from_four_broken_yarns_on():
+    """Where the crossings slip the yarn beside the crack carries at most twice a broken yarn's
+    load: Hedgepeth's K_n up to n = 3 (1.83), 2 from n = 4 (K_4 = 2.03) on."""
+    rule = _slit_rule(name="del_zone")
+    assert SLIP_CONCENTRATION == 2.0
+    n = np.array([0, 1, 3, 4, 8, 400])
+    assert rule.concentration(n) == pytest.approx(np.minimum(hedgepeth_concentration(n), 2.0), rel=1e-14)
+    assert rule.concentration(n)[:3] == pytest.approx(hedgepeth_concentration(n[:3]), rel=1e-14)
+    assert _slit_rule().concentration(n)[-1] > 11.0         # the uncapped rule's factor grows on
+    with pytest.raises(ValueError, match="at least 1"):
+        ShearLag.on_cells(_grid(N, 2e-3), (X, Y), zylon_as(), concentration_cap=0.5)
+
+
+def test_beside_eight_broken_yarns_the_del_zones_tip_needs_half_the_strength():
+    """The slit of 8 yarns: Hedgepeth's K_8 = 2.70 breaks the tip at 0.45 of the segment's
+    critical strain; capped at 2 the same tip holds there and breaks at 0.55, on its yarn's
+    stretch: the tip cell's own strain at 0.3."""
+    rule = _slit_rule(name="del_zone")
+    _step(rule, 0.45, 0.3)
+    assert rule.kind[0, cell(7, 3)] == UNCRACKED
+    _step(rule, 0.55, 0.3)
+    assert rule.kind[0, cell(7, 3)] == TIP
+    shear_lag = _slit_rule()
+    _step(shear_lag, 0.45, 0.3)
+    assert shear_lag.kind[0, cell(7, 3)] == TIP
+
+
+def test_a_cell_that_joins_the_del_zones_crack_breaks_in_that_step():
+    """Its yarn has passed the segment's peak: the del zone's joined tip is at alpha 1/2 at once,
+    where the shear-lag tip keeps what its yarn's raised stretch left it (0.8 here) until that
+    stretch rises further."""
+    slip = _slit_rule(name="del_zone")
+    b, redo = _step(slip, 0.55, 0.3, HalvingSurrogate(0.8))
+    assert slip.kind[0, cell(7, 3)] == TIP and b[0, cell(7, 3)] == 0.5 and cell(7, 3) in redo
+    lag = _slit_rule()
+    b, _ = _step(lag, 0.55, 0.3, HalvingSurrogate(0.8))
+    assert lag.kind[0, cell(7, 3)] == TIP and b[0, cell(7, 3)] == pytest.approx(0.8)
+    assert b[0, cell(7, 4)] == 1.0                          # the next cell waits for the broken one
