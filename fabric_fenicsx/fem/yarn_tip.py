@@ -23,7 +23,8 @@ the other family's strain the cell's own. The median, because the band also hold
 not the yarn's strain: slack cells on cut yarns beside the slit and a crack's softening cells. The
 surrogate decides the damage at (Ebar_i, E_j) with the segment's law; once joined, the cell softens
 by its own strains with the law of equal energy, as in the yarn crack. Where the band is empty
-(a panel's corner) the cell's own strain decides. No length is added: r_c is the neighbourhood
+(a panel's corner) the cell's own strain decides. ``band`` widens the band to that many cell
+widths (the del zone reads two: :mod:`fabric_fenicsx.fem.shear_lag`). No length is added: r_c is the neighbourhood
 the crack tracking reads and shrinks with the cells, while the cells' concentration, which does
 not shrink, stays in the tip's cell. With ``roots`` (the scenes' ``yarn_strain``) a crack's start
 (a root) waits for its yarn in the same way. One rank, as the yarn crack.
@@ -61,10 +62,14 @@ class YarnTip(YarnCrack):
     """The yarn crack whose tips join only when their yarn, read along it, reaches the segment's
     law (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
-    def __init__(self, corners, directions, *args, roots: bool = False, **kwargs):
+    def __init__(self, corners, directions, *args, roots: bool = False, band: float = 1.0, **kwargs):
+        if not band > 0.0:
+            raise ValueError(f"the yarn's band must be a positive number of cell widths, got {band!r}")
         super().__init__(corners, directions, *args, **kwargs)
         self.roots = bool(roots)
         """Whether a crack's start (a root) also waits for its yarn (``yarn_strain``), not only a tip."""
+        self.band = float(band)
+        """The width of the band a yarn is read over, in cell widths sqrt(A_c) (module docstring: 1)."""
         self.directions = np.array([np.asarray(d, float) for d in directions])
         self.width = np.sqrt(polygon_areas(np.asarray(corners, float)))
         self.tips_held = np.zeros(2, np.int64)    # cell-steps a tip waited for its yarn, per family
@@ -80,7 +85,7 @@ class YarnTip(YarnCrack):
         t = self.directions[family]
         along, across = d @ t, d @ np.array([-t[1], t[0]])
         keep = ((other != cells[owner]) & live[other] & (self.kind[family, other] == UNCRACKED)
-                & (np.abs(along) <= self.radius[cells[owner]]) & (np.abs(across) <= 0.5 * self.width[cells[owner]]))
+                & (np.abs(along) <= self.radius[cells[owner]]) & (np.abs(across) <= 0.5 * self.band * self.width[cells[owner]]))
         values = np.atleast_2d(E_cell)
         out = np.empty((values.shape[0], cells.size))
         for k, value in enumerate(values):
