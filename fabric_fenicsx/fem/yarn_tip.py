@@ -24,7 +24,7 @@ not the yarn's strain: slack cells on cut yarns beside the slit and a crack's so
 surrogate decides the damage at (Ebar_i, E_j) with the segment's law; once joined, the cell softens
 by its own strains with the law of equal energy, as in the yarn crack. Where the band is empty
 (a panel's corner) the cell's own strain decides. ``band`` widens the band to that many cell
-widths (the del zone reads two: :mod:`fabric_fenicsx.fem.shear_lag`). No length is added: r_c is the neighbourhood
+widths (the del zone reads three, the rows on both sides too: :mod:`fabric_fenicsx.fem.shear_lag`). No length is added: r_c is the neighbourhood
 the crack tracking reads and shrinks with the cells, while the cells' concentration, which does
 not shrink, stays in the tip's cell. With ``roots`` (the scenes' ``yarn_strain``) a crack's start
 (a root) waits for its yarn in the same way. One rank, as the yarn crack.

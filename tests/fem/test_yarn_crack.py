@@ -191,6 +191,23 @@ def test_a_cells_yarn_strain_is_the_median_along_its_row_within_the_neighbourhoo
     assert rule.yarn_strain(1, np.array([cell(7, 3)]), E1, live)[0] == pytest.approx(np.median(E1[column]))
 
 
+def test_a_band_three_cells_wide_reads_the_rows_on_both_sides_too():
+    """``band = 3``: the cells within 1.5 cell widths of the yarn's line through the cell, the rows
+    beside its own (the slit's cells, cut in the warp, left out), within the same reach."""
+    wide = YarnTip.on_cells(_grid(N, H), (X, Y), zylon_as(), band=3.0)
+    wide.add_crack([cell(7, 0), cell(7, 1), cell(7, 2)], 0, 7.5 * H)
+    E1 = np.arange(N * N, dtype=float)
+    live = np.ones(N * N, dtype=bool)
+    ball = wide.radius[0]
+    rows = [cell(i, j) for i in range(N) for j in (2, 3, 4) if (i, j) not in ((7, 3), (7, 2))
+            and np.hypot((i - 7) * H, (j - 3) * H) <= ball]
+    assert wide.yarn_strain(0, np.array([cell(7, 3)]), E1, live)[0] == pytest.approx(np.median(E1[rows]))
+    assert wide.yarn_strain(0, np.array([cell(7, 3)]), E1, live)[0] != _slit_rule().yarn_strain(
+        0, np.array([cell(7, 3)]), E1, live)[0]
+    with pytest.raises(ValueError, match="positive number of cell widths"):
+        YarnTip.on_cells(_grid(N, H), (X, Y), zylon_as(), band=0.0)
+
+
 def _tip_step(rule, neighbours: float):
     """One damage update with the tip cell (7, 3) strained past the segment's law and its row at
     ``neighbours`` (a fraction of the segment's critical strain)."""
