@@ -83,13 +83,15 @@ def _slit_rule(h=2e-3, name="shear_lag"):
 
 
 def _step(rule, row: float, tip: float, surrogate=None, a_old=None):
-    """One damage update with the warp strain of row 3 (the tip's yarn) at ``row`` and of the tip
-    cell (7, 3) at ``tip`` (fractions of the segment's critical strain), the rest at half."""
+    """One damage update with the warp strain of row 3 (the tip's yarn, and the rows beside it
+    that the rule's band reads) at ``row`` and of the tip cell (7, 3) at ``tip`` (fractions of
+    the segment's critical strain), the rest at half."""
     surrogate = surrogate or HalvingSurrogate()
     points = np.arange(N * N)
     full = rule.base[0][0, 0] - 1.0
     E1 = np.full(N * N, 0.5 * full)
-    E1[[cell(i, 3) for i in range(N)]] = row * full
+    beside = int(rule.band // 2)
+    E1[[cell(i, j) for i in range(N) for j in range(3 - beside, 4 + beside)]] = row * full
     E1[cell(7, 3)] = tip * full
     a_old = np.ones((2, N * N)) if a_old is None else a_old
     b_new = np.stack(surrogate.update(E1, np.zeros(N * N), a_old[0], a_old[1], *rule.laws(points).values())[2:])
