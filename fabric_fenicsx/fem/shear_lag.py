@@ -50,9 +50,10 @@ strength (docs/ballistic_limit.md).
 **The del zone** (``material.failure = "del_zone"``: the factor at most
 :data:`SLIP_CONCENTRATION` = 2). A dry fabric's crossings pass load by friction, at most mu V
 at a crossing (V the unit cell's contact force; mu 0.27 between Kevlar fibres, Sec. 4.1 after
-Rebouillat). Where they slip, a broken yarn takes its load T back along its length at that rate, over T / (mu V) crossings, and the intact
-yarns beside it take the load up, and give up any excess again, at the same rate (the crossing
-yarn presses on the broken and the intact yarn alike). On every line across the yarns the
+Rebouillat). Where they slip, a broken yarn takes its load T back along its length at that
+rate, over T / (mu V) crossings, and the intact yarns beside it take the load up, and give up
+any excess again, at the same rate (the crossing yarn presses on the broken and the intact yarn
+alike). On every line across the yarns the
 intact yarns' excess equals the broken yarns' deficit; with excesses that fall monotonically
 away from the crack, none can exceed what the broken yarns' recovery length lets it gather,
 T: the yarn beside the crack carries at most twice the load a broken yarn carried, and the
@@ -65,13 +66,15 @@ The del zone's crack cells also **snap** (``snap``): a cell that joins a crack (
 tip) breaks, alpha_i at most 1/2, in the step it joins. Its yarn has reached the segment's law,
 the peak of the segment's force (Eq. 2-25); a segment of a yarn many segments long cannot soften
 stably past that peak, since the rest of the yarn, unloading, gives up more energy than the
-segment's softening takes (the weakest link of the thesis's fibril bundle, Sec. 2.3). Without
+segment's softening takes (a fibril bundle of Sec. 2.3 in series with the rest of its yarn). Without
 it a joined cell softens only as its yarn's raised stretch, or its own strains, go on rising,
 and how fast the latter rise is the cell's own concentration, a property of the mesh (on the
 tear test a joined tip broke within a step on the aligned grid and after 700 N more on the
 graded mesh, docs/tear_test.md). The rest of its opening follows its own strains with the yarn
-crack's law of equal energy. Both rules are candidates, not the scenes' default. One rank, as
-the yarn crack.
+crack's law of equal energy. And the del zone reads its yarn over a band three cells wide
+(``band = 3``, :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`): a cell spans more than a yarn, and
+the first row beyond a crack spans its last slack yarn and the first loaded one. Both rules are
+candidates, not the scenes' default. One rank, as the yarn crack.
 """
 from __future__ import annotations
 
@@ -126,7 +129,8 @@ class ShearLag(YarnTip):
     """The yarn crack whose tips break by their yarn's stretch raised by Hedgepeth's concentration
     (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
-    def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, snap: bool = False, **kwargs):
+    def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, snap: bool = False,
+                 **kwargs):
         if not concentration_cap >= 1.0:
             raise ValueError(f"the concentration's cap must be at least 1, got {concentration_cap!r}")
         kwargs.setdefault("roots", True)
