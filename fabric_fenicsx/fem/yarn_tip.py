@@ -24,10 +24,11 @@ not the yarn's strain: slack cells on cut yarns beside the slit and a crack's so
 surrogate decides the damage at (Ebar_i, E_j) with the segment's law; once joined, the cell softens
 by its own strains with the law of equal energy, as in the yarn crack. Where the band is empty
 (a panel's corner) the cell's own strain decides. ``band`` widens the band to that many cell
-widths (the del zone reads three, the rows on both sides too: :mod:`fabric_fenicsx.fem.shear_lag`). No length is added: r_c is the neighbourhood
-the crack tracking reads and shrinks with the cells, while the cells' concentration, which does
-not shrink, stays in the tip's cell. With ``roots`` (the scenes' ``yarn_strain``) a crack's start
-(a root) waits for its yarn in the same way. One rank, as the yarn crack.
+widths (the del zone reads three, the rows on both sides too: :mod:`fabric_fenicsx.fem.shear_lag`).
+No length is added: r_c is the neighbourhood the crack tracking reads and shrinks with the
+cells, while the cells' concentration, which does not shrink, stays in the tip's cell. With
+``roots`` (the scenes' ``yarn_strain``) a crack's start (a root) waits for its yarn in the same
+way. One rank, as the yarn crack.
 
 Measured (docs/tear_test.md, docs/ballistic_limit.md): no tear runs from a slit before the panel
 fails elsewhere, and the panel's strength agrees across the meshes within 10 %; Y90's families

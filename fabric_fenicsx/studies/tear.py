@@ -27,8 +27,9 @@ unit length of tear**, the energy given up by the breaking yarns (damage dissipa
 stored energy of removed cells) while the tear grew, over its length; and the **path's angle**, the principal direction of the centres of the
 tear's cells (the broken cells joined to the slit through broken cells; 90 degrees: along the
 fill yarns, straight across the load); the **tear strain**, the uncut section's mean warp Green
-strain at the tear load (when the rule tears, apart from the force each mesh carries at that strain:
-a cell's stiffness on a turned grid differs by a few per cent); and the **tip concentration**, the warp strain of the
+strain at the tear load (when the rule tears, apart from the force each mesh carries at that
+strain: a grid turned 45 degrees carries up to 15 % more than the aligned one, docs/tear_test.md);
+and the **tip concentration**, the warp strain of the
 tear's first cell over that of the uncut section at half the tear load (:func:`tip_concentration`:
 1 in the thesis's membrane, whose yarns pass no load to each other; what the cells add depends on
 their shape). A tear that follows the yarns has the same load, work and angle on every family;
