@@ -53,10 +53,9 @@ at a crossing (V the unit cell's contact force; mu 0.27 between Kevlar fibres, S
 Rebouillat). Where they slip, a broken yarn takes its load T back along its length at that
 rate, over T / (mu V) crossings, and the intact yarns beside it take the load up, and give up
 any excess again, at the same rate (the crossing yarn presses on the broken and the intact yarn
-alike). On every line across the yarns the
-intact yarns' excess equals the broken yarns' deficit; with excesses that fall monotonically
-away from the crack, none can exceed what the broken yarns' recovery length lets it gather,
-T: the yarn beside the crack carries at most twice the load a broken yarn carried, and the
+alike). On every line across the yarns the intact yarns' excess equals the broken yarns'
+deficit; with excesses that fall monotonically away from the crack, none can exceed what the
+broken yarns' recovery length lets it gather, T: the yarn beside the crack carries at most twice the load a broken yarn carried, and the
 load of n broken yarns spreads over at least n intact ones (the del zone of a fabric's tear).
 Neither mu nor V is left in the bound. The factor is Hedgepeth's while the crossings hold (K_n
 < 2 for n <= 3) and 2 from n = 4 broken yarns on. A bound, not the slip zone solved (that
@@ -66,8 +65,8 @@ The del zone's crack cells also **snap** (``snap``): a cell that joins a crack (
 tip) breaks, alpha_i at most 1/2, in the step it joins. Its yarn has reached the segment's law,
 the peak of the segment's force (Eq. 2-25); a segment of a yarn many segments long cannot soften
 stably past that peak, since the rest of the yarn, unloading, gives up more energy than the
-segment's softening takes (a fibril bundle of Sec. 2.3 in series with the rest of its yarn). Without
-it a joined cell softens only as its yarn's raised stretch, or its own strains, go on rising,
+segment's softening takes (a fibril bundle of Sec. 2.3 in series with the rest of its yarn).
+Without it a joined cell softens only as its yarn's raised stretch, or its own strains, go on rising,
 and how fast the latter rise is the cell's own concentration, a property of the mesh (on the
 tear test a joined tip broke within a step on the aligned grid and after 700 N more on the
 graded mesh, docs/tear_test.md). The rest of its opening follows its own strains with the yarn

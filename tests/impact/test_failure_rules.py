@@ -24,6 +24,15 @@ BASE = [sys.executable, "-m", "fabric_fenicsx.cli", "impact", Y90, "--quiet", "-
         "--set", "output.png=false", "--set", "material.failure=yarn_crack"]
 
 
+def test_every_failure_rule_the_run_builds_is_a_scene_choice():
+    """The scene's key lists the rules by name (the scene loader imports no rule); each name that
+    fabric_fenicsx.impact.setup.FAILURE_RULES builds loads."""
+    from fabric_fenicsx.impact.setup import FAILURE_RULES
+
+    for name in FAILURE_RULES:
+        assert load_scene(Y90, [f"material.failure={name}"]).material.failure == name
+
+
 def test_an_unknown_failure_rule_is_refused_with_the_known_ones():
     with pytest.raises(SceneError, match="material.failure.*thesis.*yarn_crack"):
         load_scene(Y90, ["material.failure=nosuch"])
