@@ -70,7 +70,10 @@ Without it a joined cell softens only as its yarn's raised stretch, or its own s
 and how fast the latter rise is the cell's own concentration, a property of the mesh (on the
 tear test a joined tip broke within a step on the aligned grid and after 700 N more on the
 graded mesh, docs/tear_test.md). The rest of its opening follows its own strains with the yarn
-crack's law of equal energy. And the del zone reads its yarn over a band three cells wide
+crack's law of equal energy. The del zone **cuts its cracks' bridges** (``close_bridges``,
+:mod:`~fabric_fenicsx.fem.crack_bridges`): where two of a crack's broken cells meet at a corner
+only, the yarn through that node is not cut, and the intact cell it enters beyond joins the crack.
+And the del zone reads its yarn over a band three cells wide
 (``band = 3``, :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`): a cell spans more than a yarn, and
 the first row beyond a crack spans its last slack yarn and the first loaded one. Both rules are
 candidates, not the scenes' default. One rank, as the yarn crack.
@@ -79,6 +82,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabric_fenicsx.fem.crack_bridges import bridge_cells, corner_nodes
 from fabric_fenicsx.fem.yarn_crack import BROKEN_ALPHA, GIVEN, ROOT, TIP, UNCRACKED
 from fabric_fenicsx.fem.yarn_tip import YarnTip
 
@@ -129,7 +133,7 @@ class ShearLag(YarnTip):
     (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
     def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, snap: bool = False,
-                 **kwargs):
+                 close_bridges: bool = False, **kwargs):
         if not concentration_cap >= 1.0:
             raise ValueError(f"the concentration's cap must be at least 1, got {concentration_cap!r}")
         kwargs.setdefault("roots", True)
@@ -137,6 +141,11 @@ class ShearLag(YarnTip):
         self.cap = float(concentration_cap)
         self.snap = bool(snap)
         """Whether a crack cell breaks (alpha at most 1/2) in the step it joins (module docstring)."""
+        self.corners = np.asarray(corners, float)
+        self.nodes = corner_nodes(self.corners) if close_bridges else None
+        """The cells' corner nodes where the rule cuts its cracks' bridges (module docstring), else None."""
+        self.bridges_cut = np.zeros(2, np.int64)   # cells that joined a crack to cut a bridge, per family
+        self._bridged_at = [None, None]            # the broken cells whose bridges were last cut
         n = self.centres.shape[0]
         self.broken = np.zeros((2, n), dtype=bool)
         self.near = np.zeros((2, n), dtype=bool)   # within the largest radius of a crack of the family
@@ -192,6 +201,9 @@ class ShearLag(YarnTip):
             lower = damage < b[i, at]
             b[i, at[lower]] = damage[lower]
             more.append(at[lower])
+        if self.nodes is not None:
+            for i in range(2):
+                self._cut_bridges(i, live)
         if self.snap:
             for i in range(2):
                 joined = ((self.kind[i] == ROOT) | (self.kind[i] == TIP)) & ~self.broken[i]
@@ -199,6 +211,24 @@ class ShearLag(YarnTip):
                 b[i, at] = BROKEN_ALPHA
                 more.append(at)
         return b, np.unique(np.concatenate(more))
+
+    def _cut_bridges(self, family: int, live: np.ndarray) -> None:
+        """Join to family ``family``'s crack the cells that cut its bridges
+        (:func:`~fabric_fenicsx.fem.crack_bridges.bridge_cells`; removed cells count as broken),
+        each on the line of a crack cell at its bridge and as loaded as that cell's yarn was."""
+        cut = self.broken[family] | ~live
+        if self._bridged_at[family] is not None and np.array_equal(cut, self._bridged_at[family]):
+            return                                   # the same crack: no new bridge
+        self._bridged_at[family] = cut
+        cells, via = bridge_cells(self.corners, self.nodes, cut, self.directions[family])
+        new = self.kind[family, cells] == UNCRACKED
+        cells, via = cells[new], via[new]
+        if cells.size == 0:
+            return
+        self.kind[family, cells], self.line[family, cells] = TIP, self.line[family, via]
+        self.carried[family, cells] = self.carried[family, via]
+        self.bridges_cut[family] += cells.size
+        self._cracks_added(family, cells)
 
     def _record_roots(self, started, surrogate, cell_of, E1, E2) -> None:
         """The stretch mu_i - 1 that each new root's yarn carried as it started (its own strains,
@@ -292,9 +322,11 @@ class ShearLag(YarnTip):
     def summary(self) -> dict:
         """:meth:`YarnTip.summary` with, per family, ``concentration_joined``: the cells that joined
         a crack by their yarn's raised stretch, and ``largest_broken_yarns``: the largest n
-        a joining tip saw."""
+        a joining tip saw, and ``bridges_cut``: the cells that joined a crack to cut its bridges
+        (0 unless the rule cuts them)."""
         out = super().summary()
         for i, name in enumerate(("warp", "fill")):
             out[name]["concentration_joined"] = int(self.joined[i])
             out[name]["largest_broken_yarns"] = int(self.largest[i])
+            out[name]["bridges_cut"] = int(self.bridges_cut[i])
         return out

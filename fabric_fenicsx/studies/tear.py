@@ -44,13 +44,14 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from fabric_fenicsx.fem.crack_bridges import bridge_cells, corner_nodes
 from fabric_fenicsx.fem.crack_rules import CRACK_RULES, crack_rule_on_cells
 from fabric_fenicsx.fem.yarn_crack import BROKEN_ALPHA
 
 FAILURE_RULES = ("thesis", "yarn_average", *CRACK_RULES)
 """The failure rules a pull can use: the scenes' (``material.failure``) and the yarn average."""
 
-__all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "near_tip_cells", "tip_concentration",
+__all__ = ["TearSetup", "parse_family", "slit_cells", "section_cells", "cut_yarn_cells", "near_tip_cells", "tip_concentration",
            "path_angle", "work_per_length", "TearTest"]
 
 @dataclass(frozen=True)
@@ -161,7 +162,9 @@ def _inside(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
 
 def slit_cells(corners: np.ndarray, setup: TearSetup) -> np.ndarray:
     """Indices of the cells (reference corners (n, 4, 2), perimeter order) that the slit
-    crosses: those holding a point of it, sampled at a hundredth of the smallest cell. The slit
+    crosses: those holding a point of it, sampled at a hundredth of the smallest cell, and the
+    cells that cut the warp's bridges across them (:mod:`~fabric_fenicsx.fem.crack_bridges`: where
+    two of them meet at a corner only, the warp through it is not cut otherwise). The slit
     lies a millionth of the panel off x = 0 so that it never runs along a column of edges, and
     ends a millionth short of its tip so that a tip on a row of edges takes no cell beyond."""
     y0, y1 = setup.slit_ends
@@ -172,6 +175,8 @@ def slit_cells(corners: np.ndarray, setup: TearSetup) -> np.ndarray:
     hit = np.zeros(corners.shape[0], dtype=bool)
     for chunk in np.array_split(np.arange(points.shape[0]), max(1, points.shape[0] // 200)):
         hit |= _inside(points[chunk], corners).any(axis=0)
+    bridges, _ = bridge_cells(corners, corner_nodes(corners), hit, (1.0, 0.0))
+    hit[bridges] = True
     return np.flatnonzero(hit)
 
 
@@ -188,6 +193,21 @@ def section_cells(centres: np.ndarray, setup: TearSetup) -> np.ndarray:
     y = setup.across(centres[:, 1])
     far = (y >= y1 + SECTION_MARGIN) & (np.abs(centres[:, 0]) <= setup.side / 2 - SECTION_MARGIN)
     return np.flatnonzero(far)
+
+
+def cut_yarn_cells(centres: np.ndarray, setup: TearSetup, h: float) -> np.ndarray:
+    """The cells on the slit's cut yarns, away from the slit: centres within the slit's span across
+    the load, at least ``h`` inside its tip (tips), and at least :data:`SECTION_MARGIN` from the
+    slit's line and from the clamped edges along the load. In the thesis's membrane, whose yarns
+    pass no load to each other (Sec. 2.1), a cut yarn carries nothing from the cut to the clamp;
+    what these cells' warp strain shows is load the mesh's cells pass into the cut yarns
+    (:meth:`TearTest.pull`'s ``cut_strain``)."""
+    y0, y1 = setup.slit_ends
+    y = setup.across(centres[:, 1])
+    lo = -np.inf if setup.notch == "edge" else 0.0
+    inside = (y <= y1 - h) & (y >= lo)
+    along = np.abs(centres[:, 0])
+    return np.flatnonzero(inside & (along >= SECTION_MARGIN) & (along <= setup.side / 2 - SECTION_MARGIN))
 
 
 def near_tip_cells(centres: np.ndarray, slit: np.ndarray, setup: TearSetup, h: float) -> np.ndarray:
@@ -302,6 +322,8 @@ class TearTest:
         self.near_tip = near_tip_cells(self.centres, self.slit, setup, self.h)
         """The cells about the slit's tip, beyond it: the tear's first cells are among them."""
         self.section = section_cells(self.centres, setup)
+        self.cut_yarns = cut_yarn_cells(self.centres, setup, self.h)
+        """The cells on the slit's cut yarns, away from it (:func:`cut_yarn_cells`)."""
 
     def _yarn_average(self):
         """The driving strains of the yarn-average rule on this mesh (built once)."""
@@ -409,7 +431,7 @@ class TearTest:
         npc = m.n_points_per_cell
         history, peak, first, elsewhere = [], 0.0, None, None
         tip_samples, concentration = [], math.nan    # (force, near-tip cells' and section's warp strains)
-        tear_strain = math.nan
+        tear_strain = cut_strain = math.nan
         end = "time limit"
         while cd.time < t_max:
             cd.step(dt)
@@ -437,6 +459,7 @@ class TearTest:
                 f, b, sec = (np.array(x) for x in zip(*tip_samples)) if tip_samples else ([], [], [])
                 concentration = tip_concentration(f, b, sec, force, np.flatnonzero(np.isin(self.near_tip, torn)))
                 tear_strain = float(section_strain)
+                cut_strain = float(warp[self.cut_yarns].mean() / section_strain) if self.cut_yarns.size else math.nan
             elif first is None:
                 tip_samples.append((force, warp[self.near_tip], section_strain))
             e = material.energies()
@@ -468,7 +491,8 @@ class TearTest:
                 "work_per_length": work_per_length(hist[:, 2], hist[:, 3]),
                 "tear_length": float(hist[-1, 2]) if hist.size else 0.0,
                 "path_angle": angle, "path_deviation": yarn_deviation(angle) if math.isfinite(angle) else math.nan,
-                "path_spread": spread, "tip_concentration": concentration, "tear_strain": tear_strain, "n_tear_cells": int(tear_cells.size),
+                "path_spread": spread, "tip_concentration": concentration, "tear_strain": tear_strain,
+                "cut_strain": cut_strain, "n_tear_cells": int(tear_cells.size),
                 "deleted": int(removal.deleted_cells.sum()), "eroded": int(removal.eroded_cells.sum()),
                 "damage_dissipation": e["damage_dissipation"], "erosion_energy": e["erosion_energy"],
                 "viscous_dissipation": e["viscous_dissipation"], "end": end, "steps": cd.n_steps,

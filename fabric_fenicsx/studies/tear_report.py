@@ -12,11 +12,13 @@ __all__ = ["COLUMNS", "MEMBER_MEASURES", "compare_families", "compare_members", 
 COLUMNS = ("family", "h", "seed", "n_cells", "notch", "tear_load", "peak_force", "work_per_length",
            "tear_length", "path_angle", "path_deviation", "path_spread", "n_tear_cells", "deleted",
            "eroded", "damage_dissipation", "erosion_energy", "viscous_dissipation", "end", "steps", "seconds",
-           "tip_concentration", "tear_strain")
+           "tip_concentration", "tear_strain", "cut_strain")
 """tear.csv's columns (SI units: N, J/m, m, J, s; angles in degrees from the warp, x; seed -1:
 no strength scatter; ``tip_concentration`` a ratio of strains,
 :func:`~fabric_fenicsx.studies.tear.tip_concentration`; ``tear_strain`` the uncut section's mean
-warp Green strain at the tear load; a table written before it had a column reads it as NaN)."""
+warp Green strain at the tear load; ``cut_strain`` the slit's cut yarns' mean warp strain away
+from it over the section's then, :func:`~fabric_fenicsx.studies.tear.cut_yarn_cells`; a table
+written before it had a column reads it as NaN)."""
 
 AGREEMENT = 0.10
 """The families agree on a measure when its spread (max - min) is within this fraction of its mean."""
@@ -129,12 +131,13 @@ def format_members(comparison: dict) -> str:
 def format_report(rows: list[dict], comparison: dict) -> str:
     """A line per mesh, then the families' agreement per size."""
     lines = [f"{'mesh':<22}{'seed':>5}{'cells':>7}{'tear load (N)':>15}{'peak (N)':>10}{'work (J/m)':>12}"
-             f"{'path (deg)':>11}{'off yarn':>9}{'tip conc.':>10}{'strain':>8}{'removed':>9}{'s':>7}  end"]
+             f"{'path (deg)':>11}{'off yarn':>9}{'tip conc.':>10}{'strain':>8}{'cut':>7}{'removed':>9}{'s':>7}  end"]
     for r in rows:
         lines.append(f"{r['family'] + ' ' + format(r['h'] * 1e3, 'g') + ' mm':<22}{int(r['seed']):>5}"
                      f"{int(r['n_cells']):>7}{r['tear_load']:>15.1f}{r['peak_force']:>10.1f}"
                      f"{r['work_per_length']:>12.2f}{r['path_angle']:>11.1f}{r['path_deviation']:>9.1f}"
                      f"{r.get('tip_concentration', math.nan):>10.3f}{r.get('tear_strain', math.nan):>8.4f}"
+                     f"{r.get('cut_strain', math.nan):>7.2f}"
                      f"{int(r['deleted']) + int(r['eroded']):>9}{r['seconds']:>7.1f}  {r['end']}")
     for size, c in comparison.items():
         lines.append(f"{size}: spread over {', '.join(c['families'])}: tear load {c['tear_load_spread']:.1%}, "
