@@ -29,6 +29,9 @@ tear's cells (the broken cells joined to the slit through broken cells; 90 degre
 fill yarns, straight across the load); the **tear strain**, the uncut section's mean warp Green
 strain at the tear load (when the rule tears, apart from the force each mesh carries at that
 strain: a grid turned 45 degrees carries up to 15 % more than the aligned one, docs/tear_test.md);
+the **cut strain**, the mean warp strain of the slit's cut yarns away from it over the section's
+then (:func:`cut_yarn_cells`: 0 or below in the thesis's membrane, whose cut yarns carry nothing;
+above, load the cells pass into them);
 and the **tip concentration**, the warp strain of the
 tear's first cell over that of the uncut section at half the tear load (:func:`tip_concentration`:
 1 in the thesis's membrane, whose yarns pass no load to each other; what the cells add depends on
