@@ -72,7 +72,8 @@ tear test a joined tip broke within a step on the aligned grid and after 700 N m
 graded mesh, docs/tear_test.md). The rest of its opening follows its own strains with the yarn
 crack's law of equal energy. The del zone **cuts its cracks' bridges** (``close_bridges``,
 :mod:`~fabric_fenicsx.fem.crack_bridges`): where two of a crack's broken cells meet at a corner
-only, the yarn through that node is not cut, and the intact cell it enters beyond joins the crack.
+only, the yarn through that node is not cut, and the intact cell at that corner that the yarn
+enters most directly joins the crack.
 And the del zone reads its yarn over a band three cells wide
 (``band = 3``, :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`): a cell spans more than a yarn, and
 the first row beyond a crack spans its last slack yarn and the first loaded one. Both rules are

@@ -25,11 +25,9 @@ def _grid(n: int, h: float, degrees: float = 0.0) -> np.ndarray:
 def _joined_across(corners: np.ndarray, nodes: np.ndarray, broken: np.ndarray) -> bool:
     """Whether an intact cell left of x = 0 shares a chain of nodes with one right of it."""
     intact = np.flatnonzero(~broken)
-    n = nodes.shape[0]
     incidence = csr_matrix((np.ones(4 * intact.size), (np.repeat(np.arange(intact.size), 4), nodes[intact].ravel())))
     _, label = connected_components(incidence @ incidence.T, directed=False)
     x = corners[intact].mean(axis=1)[:, 0]
-    assert n > intact.size
     return bool(np.intersect1d(label[x < 0], label[x > 0]).size)
 
 
