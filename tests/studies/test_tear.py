@@ -220,16 +220,21 @@ def test_the_shear_lag_tips_tear_load_follows_neither_the_hourglass_control_nor_
     """With the tip broken by Hedgepeth's concentration of its yarn's stretch (counted in yarn
     spacings) the tear load no longer reads the coupling the control gives the cells: measured at
     4 mm on the aligned grid 2260 / 2134 / 2220 N at control 0.01 / 0.05 / 0.5 (the yarn crack's
-    3231 / 2536 / 1807 N, the test above), and 2135 N on the 45-degree grid, 2090 N graded."""
+    3231 / 2536 / 1807 N, the test above), and 2090 N graded. On the 45-degree grid 1810 N since
+    the slit cuts its corner bridges (2135 N with a slit that left the warp through one corner
+    uncut, its cut yarns then at 0.48 of the section's strain, now 0.21): on this coarse grid the
+    turned cells carry less than the aligned ones at a like tear strain (0.0349; 0.0340 aligned)."""
     weak, strong = (_pull("aligned", 0.004, "shear_lag", hourglass=k) for k in (0.01, 0.5))
     assert weak["end"] == strong["end"] == "torn through"
     assert abs(strong["tear_load"] / weak["tear_load"] - 1.0) < 0.1
     loads = [weak["tear_load"], strong["tear_load"]]
-    for family in ("structured45", "graded"):
-        pull = _pull(family, 0.004, "shear_lag")
-        assert pull["end"] == "torn through" and pull["path_deviation"] < 5.0
-        loads.append(pull["tear_load"])
+    graded = _pull("graded", 0.004, "shear_lag")
+    assert graded["end"] == "torn through" and graded["path_deviation"] < 5.0
+    loads.append(graded["tear_load"])
     assert (max(loads) - min(loads)) / np.mean(loads) < 0.1
+    turned = _pull("structured45", 0.004, "shear_lag")
+    assert turned["end"] == "torn through" and turned["path_deviation"] < 5.0
+    assert abs(turned["tear_strain"] / weak["tear_strain"] - 1.0) < 0.1
 
 
 def test_in_the_del_zone_the_slit_tears_at_twice_its_tips_yarn_stretch_not_hedgepeths_factor():
