@@ -70,7 +70,11 @@ Without it a joined cell softens only as its yarn's raised stretch, or its own s
 and how fast the latter rise is the cell's own concentration, a property of the mesh (on the
 tear test a joined tip broke within a step on the aligned grid and after 700 N more on the
 graded mesh, docs/tear_test.md). The rest of its opening follows its own strains with the yarn
-crack's law of equal energy. The del zone **cuts its cracks' bridges** (``close_bridges``,
+crack's law of equal energy. The del zone **reads the tip's yarn over the uncut yarns** of its band
+(``read_uncut``): the band's cells within the span across of the cut yarns beside the tip are
+left out, since the tip's yarn is the first uncut one and what its neighbours on the crack's side
+carry (slack, or loaded back by the cells' coupling, a property of the mesh) is not its strain.
+The del zone **cuts its cracks' bridges** (``close_bridges``,
 :mod:`~fabric_fenicsx.fem.crack_bridges`): where two of a crack's broken cells meet at a corner
 only, the yarn through that node is not cut, and the intact cell at that corner that the yarn
 enters most directly joins the crack.
@@ -111,22 +115,27 @@ def touching_pieces(lo, hi, length_lo, length_hi, weights, at_lo, at_hi, gap):
     sqrt(area) about its centre, so that the cells turned to the yarns, whose corners reach past
     their neighbours', do not lengthen it). Per candidate spanning [at_lo, at_hi] (arrays), over
     the pieces it touches within ``gap`` (the piece it ends, or the two it would bridge): (span,
-    sums), their summed length and the sums of the cells' ``weights`` (m, k) columns; 0 for none.
+    sums, reach), their summed length, the sums of the cells' ``weights`` (m, k) columns (0 for
+    none) and the extent across they span (their length's ends), (2, candidates) (NaN for none).
     Vectorised."""
     order = np.argsort(lo)
     lo, hi, length_lo, length_hi, weights = lo[order], hi[order], length_lo[order], length_hi[order], weights[order]
     start = np.flatnonzero(np.r_[True, lo[1:] > np.maximum.accumulate(hi)[:-1] + gap])
     p_lo, p_hi = lo[start], np.maximum.reduceat(hi, start)
-    p_len = np.maximum.reduceat(length_hi, start) - np.minimum.reduceat(length_lo, start)
+    p_from, p_to = np.minimum.reduceat(length_lo, start), np.maximum.reduceat(length_hi, start)
+    p_len = p_to - p_from
     p_sum = np.add.reduceat(weights, start, axis=0)
     span, sums = np.zeros(np.size(at_lo)), np.zeros((np.size(at_lo), weights.shape[1]))
+    reach = np.full((2, np.size(at_lo)), np.nan)   # the touched pieces' extent across (from, to)
     last = np.searchsorted(p_lo, at_hi + gap, side="right") - 1   # the last piece starting before
     for k in (last, last - 1):
         kk = np.clip(k, 0, p_lo.size - 1)
         touches = (k >= 0) & (p_hi[kk] >= at_lo - gap) & (p_lo[kk] <= at_hi + gap)
         span += np.where(touches, p_len[kk], 0.0)
         sums += np.where(touches[:, None], p_sum[kk], 0.0)
-    return span, sums
+        reach[0] = np.where(touches, np.fmin(reach[0], p_from[kk]), reach[0])
+        reach[1] = np.where(touches, np.fmax(reach[1], p_to[kk]), reach[1])
+    return span, sums, reach
 
 
 class ShearLag(YarnTip):
@@ -134,7 +143,7 @@ class ShearLag(YarnTip):
     (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
     def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, snap: bool = False,
-                 close_bridges: bool = False, **kwargs):
+                 close_bridges: bool = False, read_uncut: bool = False, **kwargs):
         if not concentration_cap >= 1.0:
             raise ValueError(f"the concentration's cap must be at least 1, got {concentration_cap!r}")
         kwargs.setdefault("roots", True)
@@ -147,6 +156,8 @@ class ShearLag(YarnTip):
         """The cells' corner nodes where the rule cuts its cracks' bridges (module docstring), else None."""
         self.bridges_cut = np.zeros(2, np.int64)   # cells that joined a crack to cut a bridge, per family
         self._bridged_at = [None, None]            # the broken cells whose bridges were last cut
+        self.read_uncut = bool(read_uncut)
+        """Whether a tip's yarn is read over the uncut yarns of its band only (module docstring)."""
         n = self.centres.shape[0]
         self.broken = np.zeros((2, n), dtype=bool)
         self.near = np.zeros((2, n), dtype=bool)   # within the largest radius of a crack of the family
@@ -257,16 +268,18 @@ class ShearLag(YarnTip):
         opened = np.flatnonzero(near & (self.kind[family] != UNCRACKED))
         cells = np.concatenate((tips, opened))
         line = np.concatenate((line[state == TIP], self.line[family, opened]))
-        n_broken, given, shed = self._broken_yarns(family, cells, line)
+        n_broken, given, shed, cut = self._broken_yarns(family, cells, line)
         keep = n_broken > 0
         if not keep.any():
             return none
         order = np.argsort(cells[keep])
         cells, line, n_broken, given, shed = (x[keep][order] for x in (cells, line, n_broken, given, shed))
+        cut = cut[:, keep][:, order]
         count = np.bincount(cell_of, minlength=self.centres.shape[0])
         # both strains of the yarn's band: the fill's strain sets the warp's crimp (Eq. 2-17 ff.)
         far = self.yarn_strain(family, cells, np.stack([np.bincount(cell_of, weights=E, minlength=count.size)
-                                                        for E in (E1, E2)]) / np.maximum(count, 1), live)
+                                                        for E in (E1, E2)]) / np.maximum(count, 1), live,
+                               skip=cut if self.read_uncut else None)
         at = np.flatnonzero(np.isin(cell_of, cells))
         where = np.searchsorted(cells, cell_of[at])
         e = [far[0][where], far[1][where]]
@@ -295,13 +308,15 @@ class ShearLag(YarnTip):
 
     def _broken_yarns(self, family: int, tips: np.ndarray, line: np.ndarray):
         """Per tip, of the broken part of the crack on its ``line`` that it touches: (n, given,
-        shed): n = round(a / s) its yarns (a its length across family ``family``'s yarns; 0: it
-        touches none), the fraction of its width given (a slit: its yarns count as loaded like the
-        tip's), and the mean stretch mu - 1 its other yarns carried as they joined."""
+        shed, cut): n = round(a / s) its yarns (a its length across family ``family``'s yarns; 0:
+        it touches none), the fraction of its width given (a slit: its yarns count as loaded like
+        the tip's), the mean stretch mu - 1 its other yarns carried as they joined, and the span
+        (from, to) of its cut yarns across, x . d_j (2, tips; NaN where it touches none)."""
         j = 1 - family
         half = 0.5 * self.width
         gap = 0.05 * float(np.median(self.width))   # neighbours' corners meet up to round-off
         n_broken, given, shed = np.zeros(tips.size, np.int64), np.zeros(tips.size), np.zeros(tips.size)
+        cut = np.full((2, tips.size), np.nan)
         broken = np.flatnonzero(self.broken[family])
         for value in np.unique(line):
             on = broken[self.line[family, broken] == value]
@@ -312,13 +327,14 @@ class ShearLag(YarnTip):
             is_given = self.kind[family, on] == GIVEN
             carried = np.where(is_given, 0.0, np.nan_to_num(self.carried[family, on]))
             weights = np.column_stack((self.width[on], self.width[on] * is_given, self.width[on] * carried))
-            span, sums = touching_pieces(self.lo[j, on], self.hi[j, on], self.at[j, on] - half[on],
+            span, sums, reach = touching_pieces(self.lo[j, on], self.hi[j, on], self.at[j, on] - half[on],
                                          self.at[j, on] + half[on], weights, self.lo[j, c], self.hi[j, c], gap)
             n_broken[mine] = np.rint(span / self.spacing[family]).astype(np.int64)
             total = np.maximum(sums[:, 0], np.finfo(float).tiny)
             given[mine] = sums[:, 1] / total
             shed[mine] = sums[:, 2] / np.maximum(sums[:, 0] - sums[:, 1], np.finfo(float).tiny)
-        return n_broken, given, shed
+            cut[:, mine] = reach
+        return n_broken, given, shed, cut
 
     def summary(self) -> dict:
         """:meth:`YarnTip.summary` with, per family, ``concentration_joined``: the cells that joined

@@ -76,17 +76,23 @@ class YarnTip(YarnCrack):
         self.tips_held = np.zeros(2, np.int64)    # cell-steps a tip waited for its yarn, per family
         self.roots_held = np.zeros(2, np.int64)   # the same for a crack's start (with ``roots``)
 
-    def yarn_strain(self, family: int, cells: np.ndarray, E_cell: np.ndarray, live: np.ndarray) -> np.ndarray:
+    def yarn_strain(self, family: int, cells: np.ndarray, E_cell: np.ndarray, live: np.ndarray,
+                    skip: np.ndarray | None = None) -> np.ndarray:
         """Ebar_i of the module docstring for ``cells``, from the cells' strains ``E_cell`` of
         ``family`` (n_cells,) and the mask of live cells ``live``; a cell's own strain where its
         band holds no other cell. ``E_cell`` may be (k, n_cells): k quantities read over the same
-        band, (k, len(cells)) returned."""
+        band, (k, len(cells)) returned. ``skip`` (2, len(cells)): per cell a span (from, to) of
+        x . d_j (the other family's direction) whose cells the band leaves out (a crack's cut
+        yarns; NaN: none)."""
         other, owner = self.neighbourhoods(cells)
         d = self.centres[other] - self.centres[cells[owner]]
         t = self.directions[family]
         along, across = d @ t, d @ np.array([-t[1], t[0]])
         keep = ((other != cells[owner]) & live[other] & (self.kind[family, other] == UNCRACKED)
                 & (np.abs(along) <= self.radius[cells[owner]]) & (np.abs(across) <= 0.5 * self.band * self.width[cells[owner]]))
+        if skip is not None:
+            at = self.centres[other] @ self.directions[1 - family]
+            keep &= ~((at > skip[0, owner]) & (at < skip[1, owner]))
         values = np.atleast_2d(E_cell)
         out = np.empty((values.shape[0], cells.size))
         for k, value in enumerate(values):

@@ -41,10 +41,12 @@ def test_hedgepeths_factors_and_their_crack_like_growth():
 def test_a_tip_counts_the_broken_piece_it_ends_or_the_two_it_bridges():
     lo, hi = np.array([0.0, 1.0, 2.0, 5.0]), np.array([1.0, 2.0, 3.0, 6.0])    # pieces [0, 3], [5, 6]
     weights = np.array([[1.0], [2.0], [3.0], [10.0]])
-    span, sums = touching_pieces(lo, hi, lo, hi, weights, np.array([3.0, 4.0, 3.0, 7.5]),
-                                 np.array([4.0, 5.0, 5.0, 8.5]), 1e-9)
+    span, sums, reach = touching_pieces(lo, hi, lo, hi, weights, np.array([3.0, 4.0, 3.0, 7.5]),
+                                        np.array([4.0, 5.0, 5.0, 8.5]), 1e-9)
     assert span == pytest.approx([3.0, 1.0, 4.0, 0.0])
     assert sums[:, 0] == pytest.approx([6.0, 10.0, 16.0, 0.0])
+    # the span across of the cut yarns each candidate's pieces hold: [0, 3], [5, 6], both, none
+    assert np.allclose(reach[:, :3], [[0.0, 5.0, 0.0], [3.0, 6.0, 6.0]]) and np.isnan(reach[:, 3]).all()
 
 
 def test_the_broken_yarns_are_counted_in_yarn_spacings_whatever_the_cells():
@@ -124,7 +126,8 @@ def test_a_joined_tip_lengthens_the_crack_only_once_it_has_broken():
     assert n == 0                                          # (7, 3) joined, not broken: (7, 4) touches nothing broken
     a[0, cell(7, 3)] = 0.4
     _step(rule, 0.45, 0.45, HalvingSurrogate(0.8), a)      # the step sees (7, 3) broken
-    n, given, shed = (x[0] for x in rule._broken_yarns(0, np.array([cell(7, 4)]), np.array([7.5 * 2e-3])))
+    n, given, shed, _ = (x[..., 0] for x in rule._broken_yarns(0, np.array([cell(7, 4)]),
+                                                                    np.array([7.5 * 2e-3])))
     assert given == pytest.approx(0.75) and shed == pytest.approx(0.45 * (rule.base[0][0, 0] - 1.0))
     assert n == round(8e-3 / (2 * zylon_as().fill.w))
 
@@ -186,3 +189,26 @@ def test_a_cell_that_joins_the_del_zones_crack_breaks_in_that_step():
     b, _ = _step(lag, 0.55, 0.3, HalvingSurrogate(0.8))
     assert lag.kind[0, cell(7, 3)] == TIP and b[0, cell(7, 3)] == pytest.approx(0.8)
     assert b[0, cell(7, 4)] == 1.0                          # the next cell waits for the broken one
+
+
+def test_the_del_zone_reads_its_tips_yarn_over_the_uncut_yarns_only():
+    """Beside a slit of 8 broken warp yarns (column 7, rows 0-2) the tip (7, 3) reads its warp over
+    the rows 2-4 of its band, columns 3-11: row 2 on cut yarns (slack, 0.0 here; 8 cells besides
+    the slit's), the tip's row 1.0 (8 cells besides the tip), row 4 2.0 (9 cells). The band's
+    median is 1.0, pulled down by the cut yarns; over the uncut yarns only (the span of the cut
+    yarns left out, as ``del_zone`` reads) it is 2.0."""
+    h = 2e-3
+    corners = _grid(N, h)
+    row = corners.mean(axis=1)[:, 1] // h
+    strain = np.select([row == 2, row == 3, row == 4], [0.0, 1.0, 2.0], 5.0)
+    live = np.ones(N * N, dtype=bool)
+    reads = {}
+    for uncut in (False, True):
+        rule = ShearLag.on_cells(corners, (X, Y), zylon_as(), band=3.0, read_uncut=uncut)
+        rule.add_crack([cell(7, j) for j in range(3)], 0, 7.5 * h)
+        tip = np.array([cell(7, 3)])
+        cut = rule._broken_yarns(0, tip, np.array([7.5 * h]))[3]
+        assert cut[:, 0] == pytest.approx([0.0, 3 * h])            # rows 0-2 cut
+        reads[uncut] = rule.yarn_strain(0, tip, strain, live, skip=cut if uncut else None)[0]
+    assert reads[False] == pytest.approx(1.0) and reads[True] == pytest.approx(2.0)
+    assert crack_rule_on_cells("del_zone", corners, (X, Y), zylon_as()).read_uncut
