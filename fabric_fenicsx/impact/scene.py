@@ -180,7 +180,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "shear_lag = yarn_strain whose tip breaks when its yarn's stretch, raised by the load the "
                        "crack's broken yarns shed (Hedgepeth's shear-lag factor), reaches the segment's strength "
                        "(fabric_fenicsx.fem.shear_lag); del_zone = shear_lag whose crossings slip: the factor "
-                       "at most 2, its crack cells snapping, its cracks' corner bridges cut "
+                       "at most 2, its crack cells snapping, its tip's yarn read over the uncut yarns, its "
+                       "cracks' corner bridges cut "
                        "(fabric_fenicsx.fem.crack_bridges)"),
         "surrogate_cache": Key("", optional_text,
                                "directory of the surrogate's tile cache (\"\" = its default)"),
