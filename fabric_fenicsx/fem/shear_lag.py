@@ -70,18 +70,17 @@ Without it a joined cell softens only as its yarn's raised stretch, or its own s
 and how fast the latter rise is the cell's own concentration, a property of the mesh (on the
 tear test a joined tip broke within a step on the aligned grid and after 700 N more on the
 graded mesh, docs/tear_test.md). The rest of its opening follows its own strains with the yarn
-crack's law of equal energy. The del zone **reads the tip's yarn over the uncut yarns** of its band
-(``read_uncut``): the band's cells within the span across of the cut yarns beside the tip are
-left out, since the tip's yarn is the first uncut one and what its neighbours on the crack's side
-carry (slack, or loaded back by the cells' coupling, a property of the mesh) is not its strain.
-The del zone **cuts its cracks' bridges** (``close_bridges``,
+crack's law of equal energy. The del zone reads its yarn over a band three cells wide
+(``band = 3``, :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`): a cell spans more than a yarn, and
+the first row beyond a crack spans its last slack yarn and the first loaded one; and over the
+**uncut yarns** of that band only (``read_uncut``): the band's cells within the span across of
+the cut yarns beside the tip are left out, since the tip's yarn is the first uncut one and what
+its neighbours on the crack's side carry (slack, or loaded back by the cells' coupling, a
+property of the mesh) is not its strain. It **cuts its cracks' bridges** (``close_bridges``,
 :mod:`~fabric_fenicsx.fem.crack_bridges`): where two of a crack's broken cells meet at a corner
 only, the yarn through that node is not cut, and the intact cell at that corner that the yarn
-enters most directly joins the crack.
-And the del zone reads its yarn over a band three cells wide
-(``band = 3``, :class:`~fabric_fenicsx.fem.yarn_tip.YarnTip`): a cell spans more than a yarn, and
-the first row beyond a crack spans its last slack yarn and the first loaded one. Both rules are
-candidates, not the scenes' default. One rank, as the yarn crack.
+enters most directly joins the crack. Both rules are candidates, not the scenes' default. One
+rank, as the yarn crack.
 """
 from __future__ import annotations
 
