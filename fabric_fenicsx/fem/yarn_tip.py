@@ -91,7 +91,7 @@ class YarnTip(YarnCrack):
         keep = ((other != cells[owner]) & live[other] & (self.kind[family, other] == UNCRACKED)
                 & (np.abs(along) <= self.radius[cells[owner]]) & (np.abs(across) <= 0.5 * self.band * self.width[cells[owner]]))
         if skip is not None:
-            at = self.centres[other] @ self.directions[1 - family]
+            at = self.at[1 - family, other]
             keep &= ~((at > skip[0, owner]) & (at < skip[1, owner]))
         values = np.atleast_2d(E_cell)
         out = np.empty((values.shape[0], cells.size))

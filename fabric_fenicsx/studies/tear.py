@@ -205,10 +205,7 @@ def cut_yarn_cells(centres: np.ndarray, setup: TearSetup, h: float) -> np.ndarra
     pass no load to each other (Sec. 2.1), a cut yarn carries nothing from the cut to the clamp;
     what these cells' warp strain shows is load the mesh's cells pass into the cut yarns
     (:meth:`TearTest.pull`'s ``cut_strain``)."""
-    y0, y1 = setup.slit_ends
-    y = setup.across(centres[:, 1])
-    lo = -np.inf if setup.notch == "edge" else 0.0
-    inside = (y <= y1 - h) & (y >= lo)
+    inside = setup.across(centres[:, 1]) <= setup.slit_ends[1] - h
     along = np.abs(centres[:, 0])
     return np.flatnonzero(inside & (along >= SECTION_MARGIN) & (along <= setup.side / 2 - SECTION_MARGIN))
 

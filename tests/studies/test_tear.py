@@ -11,9 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-from fabric_fenicsx.studies.tear import (SECTION_MARGIN, TearSetup, near_tip_cells, parse_family, path_angle,
-                                         section_cells, slit_cells, tip_concentration, work_per_length,
-                                         yarn_deviation)
+from fabric_fenicsx.studies.tear import (SECTION_MARGIN, TearSetup, cut_yarn_cells, near_tip_cells, parse_family,
+                                         path_angle, section_cells, slit_cells, tip_concentration,
+                                         work_per_length, yarn_deviation)
 
 
 def _grid(n: int, side: float) -> np.ndarray:
@@ -80,6 +80,20 @@ def test_the_uncut_section_lies_beyond_the_slit_and_away_from_the_clamps(notch):
     # every cell that far out is taken: 20 columns (|x| <= 25 mm) of 17 rows (y >= -13 mm) beyond an
     # edge notch ending at -18 mm, of 2 x 8 rows (|y| >= 11 mm) beside a centred one
     assert cells.size == 20 * (17 if notch == "edge" else 16)
+
+
+@pytest.mark.parametrize("notch", ["edge", "centre"])
+def test_the_cut_yarns_lie_within_the_slits_span_away_from_its_line_and_the_clamps(notch):
+    setup = TearSetup(side=0.06, slit=0.012, notch=notch)
+    centres = _grid(24, 0.06).mean(axis=1)                          # 2.5 mm cells
+    cells = cut_yarn_cells(centres, setup, 0.0025)
+    y = centres[cells, 1] if notch == "edge" else np.abs(centres[cells, 1])
+    assert cells.size > 0 and y.max() <= setup.slit_ends[1] - 0.0025
+    x = np.abs(centres[cells, 0])
+    assert x.min() >= SECTION_MARGIN and x.max() <= 0.03 - SECTION_MARGIN
+    # 16 columns (5 mm <= |x| <= 25 mm) of 4 rows (y <= -20.5 mm) under an edge notch ending at
+    # -18 mm, of 2 rows (|y| <= 3.5 mm) inside a centred one ending at +-6 mm
+    assert cells.size == 16 * (4 if notch == "edge" else 2)
 
 
 @pytest.mark.parametrize("notch", ["edge", "centre"])
