@@ -62,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--members", type=int, default=1,
                         help="tables, friction, fillet: runs per case, each a new member (a seed of the strength "
                              "scatter, or the velocity changed by k x 1e-12), reported as means with 95 %% intervals "
-                             "(default 1)")
+                             "(default 1); tear: the pull without scatter and N - 1 members of --scatter")
     parser.add_argument("--ci", type=float, default=2.0,
                         help="v50: stop a scene's estimate when V50's 95 %% interval is no wider (m/s, default 2)")
     parser.add_argument("--max-runs", type=int, default=40,
@@ -70,7 +70,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--doc", default="docs/validation.md", help="chapter4: the report to write")
     parser.add_argument("--quiet", action="store_true", help="no line per run and no progress lines")
     parser.add_argument("--seeds", type=int, default=100, help="strip: seeds of the scatter per mesh (default 100)")
-    parser.add_argument("--scatter", default="weibull", help="strip: the scatter model (weibull or fibrils)")
+    parser.add_argument("--scatter", default="weibull", help="strip: the scatter model (weibull or fibrils); tear: "
+                        "the members' (weibull, fibrils, or none: round-off twins)")
     parser.add_argument("--sizes", default=None, help="strip, tear: cell sizes in m (default 0.002,0.001)")
     parser.add_argument("--families", default=None,
                         help="strip: mesh families (default aligned,free); tear: aligned, graded, structured<deg>, "

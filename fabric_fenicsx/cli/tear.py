@@ -4,7 +4,8 @@ A 60 mm panel with a 10 mm slit across the warp (``--notch edge``, from the bott
 ``centre``), pulled along the warp at 5 m/s until the tear runs through, on each mesh family
 (``--families``, default aligned,structured30,structured45,graded; ``file`` with
 ``--mesh-file``) and cell size (``--sizes`` in m, default 0.002,0.001): without scatter, and
-with ``--members N`` also N - 1 seeds of ``--scatter``. Writes OUT/tear.csv (a row per pull as
+with ``--members N`` also N - 1 seeds of ``--scatter``, or with ``--scatter none`` N - 1 round-off
+twins (the pull speed changed by k x 1e-12 of itself: after damage a pull is a draw). Writes OUT/tear.csv (a row per pull as
 it ends; a study run again with the same setup skips the pulls it holds, one with another setup
 is refused: OUT/tear-setup.json), OUT/tear-<family>-<size>.npz (each
 mesh's final cells, for the picture), OUT/tear.json and OUT/tear.png, and prints the families
@@ -99,8 +100,8 @@ def run(args: argparse.Namespace) -> int:
                                hourglass=getattr(args, "hourglass", 0.05))
     except ValueError as err:
         problems.append(str(err))
-    if args.members > 1 and args.scatter not in ("weibull", "fibrils"):
-        problems.append(f"--scatter must be weibull or fibrils, got {args.scatter!r}")
+    if args.members > 1 and args.scatter not in ("weibull", "fibrils", "none"):
+        problems.append(f"--scatter must be weibull, fibrils or none (round-off twins), got {args.scatter!r}")
     out_wrong = out_problem(args.out if args.out is not None else "out/study-tear")
     if out_wrong:
         problems.append(out_wrong)
@@ -127,8 +128,9 @@ def _run(args, plan, setup, out: Path) -> int:
     table = out / "tear.csv"
     recorded = out / "tear-setup.json"
     mesh_file = getattr(args, "mesh_file", None)
-    wanted = json.dumps({**tear.setup_dict(setup), "mesh_file": str(Path(mesh_file).resolve()) if mesh_file else None},
-                        sort_keys=True)
+    twins = args.scatter == "none"
+    wanted = json.dumps({**tear.setup_dict(setup), "mesh_file": str(Path(mesh_file).resolve()) if mesh_file else None,
+                         "members": "twins" if twins else args.scatter}, sort_keys=True)
     if table.exists() and recorded.exists() and recorded.read_text() != wanted:
         print(f"{PROG}: {out} holds pulls of another setup ({recorded.read_text()}); give another --out",
               file=sys.stderr)
@@ -156,13 +158,14 @@ def _run(args, plan, setup, out: Path) -> int:
             say(f"tear: {family} {h * 1e3:g} mm: reused from {table}")
             continue
         test = tear.TearTest(fabric, family, h, setup, mesh_file=mesh_file)
-        laws = {s: None if s < 0 else test.laws(StrengthScatter(args.scatter, seed=s)) for s in todo}
+        laws = {s: None if s < 0 or twins else test.laws(StrengthScatter(args.scatter, seed=s)) for s in todo}
         rng = DamageRange.union(*(test.damage_range(law) for law in laws.values()))
         if surrogate is None or rng is not None:
             surrogate = Surrogate(fabric, progress=False, workers=1, damage_range=rng)
         for seed in todo:
             try:
-                r = test.pull(surrogate, laws[seed], progress=lambda line: say(f"  {family} {h * 1e3:g} mm: {line}"))
+                r = test.pull(surrogate, laws[seed], progress=lambda line: say(f"  {family} {h * 1e3:g} mm: {line}"),
+                              twin=seed + 1 if twins else 0)
             except STEP_ERRORS as err:
                 print(f"{PROG}: stopped: {family} {h * 1e3:g} mm, seed {seed}: {type(err).__name__}: {err}; the "
                       f"pulls in {table} are kept", file=sys.stderr)
@@ -180,7 +183,7 @@ def _run(args, plan, setup, out: Path) -> int:
                 f"({r['seconds']:.1f} s; {time.perf_counter() - t0:.0f} s elapsed)")
     rows = [r for r in rows if (r["family"], r["h"]) in set(plan)]
     comparison = tear_report.compare_families(rows)
-    members = tear_report.compare_members(rows)
+    members = tear_report.compare_members(rows, twins=twins)
     report = {"setup": tear.setup_dict(setup), "rows": rows, "families_compared": comparison,
               "members_compared": members, "wall_time_s": time.perf_counter() - t0}
     (out / "tear.json").write_text(json.dumps(report, indent=1, default=float))

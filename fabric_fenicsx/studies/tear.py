@@ -391,9 +391,10 @@ class TearTest:
         return {"family": ("warp", "fill")[family[k]], "x": float(self.centres[cells[k], 0]),
                 "y": float(self.centres[cells[k], 1]), "t": float(t), "tear_length": float(length)}
 
-    def pull(self, surrogate, laws=None, progress=None) -> dict:
-        """Pull the panel with the cell laws ``laws`` (None: the fabric's own law) until the tear
-        has run through, the force has fallen below a tenth of its peak, or the right edge has
+    def pull(self, surrogate, laws=None, progress=None, twin: int = 0) -> dict:
+        """Pull the panel with the cell laws ``laws`` (None: the fabric's own law), at the speed
+        changed by ``twin`` x 1e-12 of itself (a round-off twin: after damage a pull is a draw, as
+        an impact run is, docs/tear_test.md), until the tear has run through, the force has fallen below a tenth of its peak, or the right edge has
         moved three times the warp's failure strain. Returns the measures of the module
         docstring, the sampled history (``history``: t, force, tear length, energy) and the
         final cells (``cells``: centres, corners, warp alpha, removed, slit) for pictures."""
@@ -424,7 +425,7 @@ class TearTest:
         cd = CentralDifference(m, material, self.fabric.areal_density,
                                self.held, cell_size=self.cell_size,
                                safety=s.dt_safety)
-        cd.v[self.pulled_x] = s.speed
+        cd.v[self.pulled_x] = s.speed * (1.0 + twin * 1e-12)
         dt = cd.stable_dt()
         E_fail = surrogate.E_fail[0]
         t_max = 3.0 * (math.sqrt(1 + 2 * E_fail) - 1.0) * s.side / s.speed

@@ -52,14 +52,16 @@ MEMBER_MEASURES = ("tear_load", "peak_force", "work_per_length", "path_deviation
 """The measures :func:`compare_members` averages over a family's strength-scatter members."""
 
 
-def compare_members(rows: list[dict]) -> dict:
-    """Per cell size, over the strength-scatter members (seed >= 0) of every family: each family's
+def compare_members(rows: list[dict], twins: bool = False) -> dict:
+    """Per cell size, over the strength-scatter members (seed >= 0) of every family, or with
+    ``twins`` over its round-off twins (every seed, -1 the twin 0: members without scatter): each family's
     mean of each of :data:`MEMBER_MEASURES` with its 95 % interval
     (:func:`~fabric_fenicsx.studies.means.mean_of`) and its share of panels torn through; the
     relative spread (max - min) / mean of the families' means and whether it is within
     :data:`AGREEMENT`; and, since a seed is the same fabric on every mesh (the scatter is a field
     of the material, read by each mesh's cells), the paired differences of the tear load and the
-    work per length between each two families with their 95 % intervals. Empty where no size has
+    work per length between each two families with their 95 % intervals (not for twins, which
+    pair nothing). Empty where no size has
     members. With the scatter a panel may break away from the slit first: the work per length
     then counts that crack's energy too (over the tear's length), and the tear load is the one
     to compare (docs/tear_test.md)."""
@@ -67,11 +69,11 @@ def compare_members(rows: list[dict]) -> dict:
 
     out = {}
     for h in sorted({r["h"] for r in rows}):
-        at = [r for r in rows if r["h"] == h and int(r["seed"]) >= 0]
+        at = [r for r in rows if r["h"] == h and (twins or int(r["seed"]) >= 0)]
         families = list(dict.fromkeys(r["family"] for r in at))
-        if not families:
+        if not families or (twins and all(int(r["seed"]) < 0 for r in at)):
             continue
-        entry = {"families": {}, "paired": {}}
+        entry = {"members": "round-off twins" if twins else "strength scatter", "families": {}, "paired": {}}
         for f in families:
             mine = [r for r in at if r["family"] == f]
             stats = {"n": len(mine), "torn_through": sum(r["end"].startswith("torn through") for r in mine) / len(mine)}
@@ -87,7 +89,7 @@ def compare_members(rows: list[dict]) -> dict:
         dev = [s["path_deviation"]["mean"] for s in entry["families"].values() if s["path_deviation"] is not None]
         entry["largest_mean_path_deviation"] = max(dev) if dev else math.nan
         by_seed = {(r["family"], int(r["seed"])): r for r in at}
-        for i, a in enumerate(families):
+        for i, a in enumerate([] if twins else families):
             for b in families[i + 1:]:
                 seeds = sorted(s for f, s in by_seed if f == a and (b, s) in by_seed)
                 pair = {}
@@ -112,7 +114,7 @@ def format_members(comparison: dict) -> str:
     """The members' means per size and family, then their spread and the paired differences."""
     lines = []
     for size, c in comparison.items():
-        lines.append(f"{size}, strength-scatter members (means with 95 % intervals):")
+        lines.append(f"{size}, {c.get('members', 'strength scatter')} members (means with 95 % intervals):")
         for f, s in c["families"].items():
             n = s["n"]
             lines.append(f"  {f:<16} n {n:>3}  tear load {_mean_text(s['tear_load'], 0, n)} N, peak "

@@ -339,6 +339,42 @@ def test_the_members_are_compared_as_means_and_paired_by_seed():
     assert compare_members([row("a", -1, 1.0, 1.0)]) == {}
 
 
+def test_round_off_twins_are_members_with_the_pull_without_scatter_and_pair_nothing():
+    from fabric_fenicsx.studies.tear_report import compare_members, format_members
+
+    def row(family, seed, load):
+        return {"family": family, "h": 0.001, "seed": seed, "tear_load": load, "peak_force": load,
+                "work_per_length": 2.0, "path_deviation": 0.5, "tip_concentration": 1.1, "end": "torn through"}
+
+    rows = [row("a", s, 3500.0 + 10 * s) for s in (-1, 0, 1)] + [row("b", s, 3800.0 - 20 * s) for s in (-1, 0, 1)]
+    c = compare_members(rows, twins=True)["1 mm"]
+    assert c["members"] == "round-off twins" and c["paired"] == {}
+    assert c["families"]["a"]["n"] == 3 and c["families"]["a"]["tear_load"]["mean"] == pytest.approx(3500.0)
+    assert c["families"]["b"]["tear_load"]["mean"] == pytest.approx(3800.0)
+    assert "round-off twins members" in format_members({"1 mm": c})
+    assert compare_members(rows)["1 mm"]["families"]["a"]["n"] == 2       # with a scatter -1 is not a member
+    assert compare_members([row("a", -1, 1.0)], twins=True) == {}          # a pull alone has no twins
+
+
+def test_a_twin_pull_is_the_pull_at_a_speed_changed_by_round_off(tmp_path):
+    cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "study", "tear", "--families", "aligned", "--sizes", "0.004"]
+    bad = subprocess.run([*cmd, "--members", "2", "--scatter", "twins", "--out", str(tmp_path / "bad")],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "none (round-off twins)" in bad.stderr
+    out = tmp_path / "twins"
+    ok = subprocess.run([*cmd, "--members", "2", "--scatter", "none", "--out", str(out)],
+                        capture_output=True, text=True, timeout=900)
+    assert ok.returncode == 0, ok.stderr[-3000:]
+    with open(out / "tear.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["seed"]) for r in rows] == [-1, 0]
+    assert float(rows[1]["tear_load"]) == pytest.approx(float(rows[0]["tear_load"]), rel=0.05)
+    assert "round-off twins members" in ok.stdout
+    weibull = subprocess.run([*cmd, "--members", "2", "--scatter", "weibull", "--out", str(out)],
+                             capture_output=True, text=True, timeout=300)
+    assert weibull.returncode == 2 and "another setup" in weibull.stderr   # twins are not a scatter's members
+
+
 def test_a_table_of_an_older_version_is_rewritten_with_todays_columns(tmp_path):
     from fabric_fenicsx.cli.tear import _done, _upgrade
     from fabric_fenicsx.studies.tear_report import COLUMNS
