@@ -4,9 +4,9 @@ A 60 mm panel with a 10 mm slit across the warp (``--notch edge``, from the bott
 ``centre``), pulled along the warp at 5 m/s until the tear runs through, on each mesh family
 (``--families``, default aligned,structured30,structured45,graded; ``file`` with
 ``--mesh-file``) and cell size (``--sizes`` in m, default 0.002,0.001): without scatter, and
-with ``--members N`` also N - 1 seeds of ``--scatter``, or with ``--scatter none`` N - 1 round-off
-twins (the pull speed changed by k x 1e-12 of itself: after damage a pull is a draw). Writes OUT/tear.csv (a row per pull as
-it ends; a study run again with the same setup skips the pulls it holds, one with another setup
+with ``--members N`` also N - 1 seeds of ``--scatter``, or with ``--scatter none`` N - 1
+round-off twins (the pull speed changed by k x 1e-12 of itself: after damage a pull is a draw).
+Writes OUT/tear.csv (a row per pull as it ends; a study run again with the same setup skips the pulls it holds, one with another setup
 is refused: OUT/tear-setup.json), OUT/tear-<family>-<size>.npz (each
 mesh's final cells, for the picture), OUT/tear.json and OUT/tear.png, and prints the families
 compared at each size: the panels without scatter, and with members each family's means over

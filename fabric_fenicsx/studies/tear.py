@@ -394,8 +394,9 @@ class TearTest:
     def pull(self, surrogate, laws=None, progress=None, twin: int = 0) -> dict:
         """Pull the panel with the cell laws ``laws`` (None: the fabric's own law), at the speed
         changed by ``twin`` x 1e-12 of itself (a round-off twin: after damage a pull is a draw, as
-        an impact run is, docs/tear_test.md), until the tear has run through, the force has fallen below a tenth of its peak, or the right edge has
-        moved three times the warp's failure strain. Returns the measures of the module
+        an impact run is, docs/tear_test.md), until the tear has run through, the force has
+        fallen below a tenth of its peak, or the right edge has moved three times the warp's
+        failure strain. Returns the measures of the module
         docstring, the sampled history (``history``: t, force, tear length, energy) and the
         final cells (``cells``: centres, corners, warp alpha, removed, slit) for pictures."""
         from fabric_fenicsx.fem.explicit import CentralDifference

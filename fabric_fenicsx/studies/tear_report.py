@@ -49,22 +49,21 @@ def compare_families(rows: list[dict]) -> dict:
 
 
 MEMBER_MEASURES = ("tear_load", "peak_force", "work_per_length", "path_deviation", "tip_concentration", "tear_strain")
-"""The measures :func:`compare_members` averages over a family's strength-scatter members."""
+"""The measures :func:`compare_members` averages over a family's members."""
 
 
 def compare_members(rows: list[dict], twins: bool = False) -> dict:
     """Per cell size, over the strength-scatter members (seed >= 0) of every family, or with
-    ``twins`` over its round-off twins (every seed, -1 the twin 0: members without scatter): each family's
-    mean of each of :data:`MEMBER_MEASURES` with its 95 % interval
+    ``twins`` over its round-off twins (every seed, -1 the twin 0: members without scatter):
+    each family's mean of each of :data:`MEMBER_MEASURES` with its 95 % interval
     (:func:`~fabric_fenicsx.studies.means.mean_of`) and its share of panels torn through; the
     relative spread (max - min) / mean of the families' means and whether it is within
     :data:`AGREEMENT`; and, since a seed is the same fabric on every mesh (the scatter is a field
     of the material, read by each mesh's cells), the paired differences of the tear load and the
     work per length between each two families with their 95 % intervals (not for twins, which
-    pair nothing). Empty where no size has
-    members. With the scatter a panel may break away from the slit first: the work per length
-    then counts that crack's energy too (over the tear's length), and the tear load is the one
-    to compare (docs/tear_test.md)."""
+    pair nothing). Empty where no size has members. With the scatter a panel may break away
+    from the slit first: the work per length then counts that crack's energy too (over the
+    tear's length), and the tear load is the one to compare (docs/tear_test.md)."""
     from fabric_fenicsx.studies.means import mean_of
 
     out = {}
