@@ -86,7 +86,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "when its yarn, read along it, reaches its strength), yarn_strain (the same for "
                              "a crack's start too), shear_lag (its tip breaks when its yarn's stretch, raised "
                              "by the load the broken yarns shed (Hedgepeth's factor), reaches its strength), "
-                             "del_zone (shear_lag whose crossings slip: the factor at most 2) or yarn_average "
+                             "del_zone (shear_lag whose crossings slip: the factor at most 2), del_zone_budget "
+                             "(del_zone whose cells break with one segment's work per yarn) or yarn_average "
                              "(damage driven by the strain averaged "
                              "along each yarn over --failure-length)")
     parser.add_argument("--failure-length", type=float, default=0.0, help="tear: the yarn average's length (m)")

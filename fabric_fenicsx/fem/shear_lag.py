@@ -87,10 +87,14 @@ from __future__ import annotations
 import numpy as np
 
 from fabric_fenicsx.fem.crack_bridges import bridge_cells, corner_nodes
+from fabric_fenicsx.fem.crack_budget import unit_cell_breaking_work
 from fabric_fenicsx.fem.yarn_crack import BROKEN_ALPHA, GIVEN, ROOT, TIP, UNCRACKED
 from fabric_fenicsx.fem.yarn_tip import YarnTip
+from fabric_fenicsx.material.crack_energy import breaking_work, softening_moments
 
 __all__ = ["hedgepeth_concentration", "SLIP_CONCENTRATION", "ShearLag"]
+
+_NO_POINTS = np.zeros(0, np.int64)
 
 SLIP_CONCENTRATION = 2.0
 """The largest factor on a yarn beside broken ones where the crossings slip (module docstring,
@@ -142,7 +146,7 @@ class ShearLag(YarnTip):
     (module docstring). Arguments as :class:`~fabric_fenicsx.fem.yarn_crack.YarnCrack`."""
 
     def __init__(self, corners, directions, *args, concentration_cap: float = np.inf, snap: bool = False,
-                 close_bridges: bool = False, read_uncut: bool = False, **kwargs):
+                 close_bridges: bool = False, read_uncut: bool = False, budget: bool = False, **kwargs):
         if not concentration_cap >= 1.0:
             raise ValueError(f"the concentration's cap must be at least 1, got {concentration_cap!r}")
         kwargs.setdefault("roots", True)
@@ -157,6 +161,12 @@ class ShearLag(YarnTip):
         self._bridged_at = [None, None]            # the broken cells whose bridges were last cut
         self.read_uncut = bool(read_uncut)
         """Whether a tip's yarn is read over the uncut yarns of its band only (module docstring)."""
+        if budget and not self.snap:
+            raise ValueError("the budget breaks snapped crack cells: it needs snap=True")
+        self.budget = bool(budget)
+        """Whether a snapped crack cell holds alpha 1/2 and breaks through at one segment's work per
+        yarn (:mod:`~fabric_fenicsx.fem.crack_budget`; the material asks :meth:`budgets`)."""
+        self._work = None   # W_i per point (2, n_points), J/m^2: at the first ask (needs the surrogate)
         n = self.centres.shape[0]
         self.broken = np.zeros((2, n), dtype=bool)
         self.near = np.zeros((2, n), dtype=bool)   # within the largest radius of a crack of the family
@@ -222,6 +232,34 @@ class ShearLag(YarnTip):
                 b[i, at] = BROKEN_ALPHA
                 more.append(at)
         return b, np.unique(np.concatenate(more))
+
+    def budgets(self, surrogate, family: int, points, a_old, b) -> tuple[np.ndarray, np.ndarray]:
+        """(at, budget): the positions in ``points`` of family ``family``'s snapped crack cells'
+        points not yet broken through (a root's or a tip's, alpha at most 1/2 after this step's
+        admit, ``b``, and above 0 before it, ``a_old``), and their budgets per unit reference area
+        (J/m^2, :mod:`~fabric_fenicsx.fem.crack_budget`). None of them unless ``budget``."""
+        if not self.budget:
+            return _NO_POINTS, np.zeros(0)
+        cell_of = points // self.npc
+        joined = (self.kind[family] == ROOT) | (self.kind[family] == TIP)
+        at = np.flatnonzero(joined[cell_of] & (b[family] <= BROKEN_ALPHA) & (a_old[family] > 0.0))
+        if self._work is None:
+            self._work = self._breaking_works(surrogate)
+        cells = cell_of[at]
+        ratio = np.minimum(self.segment[family] / (self.hi[family, cells] - self.lo[family, cells]), 1.0)
+        return at, ratio * self._work[family, points[at]]
+
+    def _breaking_works(self, surrogate) -> np.ndarray:
+        """W_i per point and family (J/m^2): the unit cell's, scaled by the point's law's
+        straight-yarn work over the fabric's (:mod:`~fabric_fenicsx.fem.crack_budget`)."""
+        out = np.empty_like(self.base[0])
+        for i in range(2):
+            W = unit_cell_breaking_work(surrogate, i)
+            I0, I1, _ = softening_moments(self.law, surrogate.fabric.yarns[i].mu_crit)
+            own = breaking_work(self.base[0][i] - 1.0, self.base[1][i], I0, I1)
+            fabric = breaking_work(surrogate.fabric.yarns[i].mu_crit - 1.0, 1.0, I0, I1)
+            out[i] = W * own / fabric
+        return out
 
     def _cut_bridges(self, family: int, live: np.ndarray) -> None:
         """Join to family ``family``'s crack the cells that cut its bridges

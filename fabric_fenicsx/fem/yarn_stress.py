@@ -87,6 +87,10 @@ class YarnStress:
         self.alpha1, self.alpha2 = np.ones(n), np.ones(n)
         self.viscous_dissipation = 0.0
         self.damage_dissipation = 0.0
+        self.point_dissipation = np.zeros((2, n))
+        """Each point's damage dissipation so far per yarn family (J, rows warp and fill): a step's
+        release at the points where both families damaged is split as warp first, then fill."""
+        self._budget_total = np.full((2, n), np.nan)   # a budgeted point's total at its last step
         self.erosion_energy = 0.0
         self.beyond_table = 0
         self.below_table = 0
@@ -244,6 +248,8 @@ class YarnStress:
                 p1, p2, b1, b2 = self.sur.update(r1, r2, h1, h2, **laws)
                 (b1, b2), redo = self.failure.admit(self.sur, idx, r1, r2, np.stack((h1, h2)),
                                                     np.stack((b1, b2)))
+                if getattr(self.failure, "budget", False):
+                    redo = np.union1d(redo, self._break_budgeted(idx, e1, e2, h1, h2, b1, b2))
                 if redo.size:   # the stresses at the damage kept
                     p1, p2 = p1.copy(), p2.copy()
                     p1[redo], p2[redo], _, _ = self.sur.evaluate(r1[redo], r2[redo], b1[redo], b2[redo])
@@ -257,11 +263,7 @@ class YarnStress:
             changed = changed[:yarn_stress_kernel.new_damage(a1h, a2h, self.live, b1, b2, a1, a2,
                                                              changed)]
             if changed.size:
-                c = idx[changed]
-                psi = self.path_energy(np.tile(e1[changed], 2), np.tile(e2[changed], 2),
-                                       np.concatenate((a1h[c], b1[changed])),
-                                       np.concatenate((a2h[c], b2[changed])))  # before, after
-                self.damage_dissipation += float(self.w[c] @ (psi[:c.size] - psi[c.size:]))
+                self._book_dissipation(idx[changed], e1[changed], e2[changed], b1[changed], b2[changed])
         else:
             a1, a2 = a1h.copy(), a2h.copy()
             p1, p2 = self._intact(e1, e2, (r1, r2))
@@ -287,6 +289,47 @@ class YarnStress:
         self.lam, self.P_el, self.P_v = lam, P_el, P_v
         self.alpha1, self.alpha2 = a1, a2
         return P[0], P[1]
+
+    def _book_dissipation(self, c, e1, e2, b1, b2) -> None:
+        """Book the energy released at points ``c`` (strains e1, e2) as their alpha went from the
+        history's to (b1, b2): in total and per point and family (the fill's share computed
+        apart only where both changed)."""
+        a1, a2 = self.alpha1[c], self.alpha2[c]
+        both = np.flatnonzero((b1 != a1) & (b2 != a2))
+        n = c.size
+        psi = self.path_energy(np.concatenate((e1, e1, e1[both])), np.concatenate((e2, e2, e2[both])),
+                               np.concatenate((a1, b1, b1[both])), np.concatenate((a2, b2, a2[both])))
+        released = self.w[c] * (psi[:n] - psi[n:2 * n])   # before, after, warp alone where both
+        self.damage_dissipation += float(released.sum())
+        warp = np.where(b1 != a1, released, 0.0)
+        warp[both] = self.w[c[both]] * (psi[:n][both] - psi[2 * n:])
+        self.point_dissipation[0, c] += warp
+        self.point_dissipation[1, c] += released - warp
+
+    def _break_budgeted(self, idx, e1, e2, h1, h2, b1, b2) -> np.ndarray:
+        """Set, in place, the new alpha (b1, b2) of the live points ``idx`` that the failure rule
+        budgets (``failure.budgets``): broken through where breaking would bring their family's
+        dissipation to the budget, else held (:func:`~fabric_fenicsx.fem.crack_budget.break_through`);
+        returns their positions in ``idx``."""
+        from fabric_fenicsx.fem.crack_budget import break_through
+
+        done = [_NONE]
+        for i, b in enumerate((b1, b2)):
+            at, budget = self.failure.budgets(self.sur, i, idx, np.stack((h1, h2)), np.stack((b1, b2)))
+            if at.size == 0:
+                continue
+            p, k = idx[at], at.size
+            old = [h1[at], h2[at]]
+            gone = [old[0].copy(), old[1].copy()]
+            gone[i][:] = 0.0
+            psi = self.path_energy(np.tile(e1[at], 2), np.tile(e2[at], 2), np.concatenate((old[0], gone[0])),
+                                   np.concatenate((old[1], gone[1])))
+            total = self.point_dissipation[i, p] + self.w[p] * (psi[:k] - psi[k:])
+            rise = np.nan_to_num(total - self._budget_total[i, p])   # since the last step (0 at the snap)
+            self._budget_total[i, p] = total
+            b[at] = break_through(total, self.w[p] * budget, old[i], rise)
+            done.append(at)
+        return np.concatenate(done)
 
     def tension(self) -> np.ndarray:
         """Yarn tensions P_i / lambda_i (N/m, shape (2, n)) at every owned point after the last

@@ -19,7 +19,7 @@ a run id that ``summary.json`` repeats: a folder never mixes two runs' results.
 * ``history.csv``: one row per history interval, written while the run goes (rank 0).
 * ``removed_cells.csv``: one row per removed cell, gathered to rank 0 and written in the step
   that removed it (columns: :data:`~fabric_fenicsx.impact.removal_log.REMOVED_CELL_COLUMNS`).
-* ``cracks.csv``: with ``material.failure = "yarn_crack"``, ``"yarn_tip"``, ``"yarn_strain"``, ``"shear_lag"`` or ``"del_zone"``, one row per cell
+* ``cracks.csv``: with ``material.failure = "yarn_crack"``, ``"yarn_tip"``, ``"yarn_strain"``, ``"shear_lag"``, ``"del_zone"`` or ``"del_zone_budget"``, one row per cell
   that joined a crack, written in the step it joined (columns:
   :data:`~fabric_fenicsx.fem.yarn_crack.CRACK_COLUMNS`).
 * ``summary.json``: the run's summary with its run id (rank 0).

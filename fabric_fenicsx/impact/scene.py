@@ -170,7 +170,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "erosion_strain": Key(1.0, number(0.0, lo_open=True),
                               "Green strain of a yarn direction beyond which a cell is eroded "
                               "(no longer a unit cell; see docs/impact_model.md)"),
-        "failure": Key("thesis", choice("thesis", "yarn_crack", "yarn_tip", "yarn_strain", "shear_lag", "del_zone"),
+        "failure": Key("thesis", choice("thesis", "yarn_crack", "yarn_tip", "yarn_strain", "shear_lag", "del_zone",
+                                        "del_zone_budget"),
                        "failure rule (fabric_fenicsx.impact.setup.FAILURE_RULES): thesis = every point "
                        "damages by Eq. 2-25 on its own strains; yarn_crack = a broken yarn family tears "
                        "along the other family with one yarn segment's energy "
@@ -182,7 +183,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                        "(fabric_fenicsx.fem.shear_lag); del_zone = shear_lag whose crossings slip: the factor "
                        "at most 2, its crack cells snapping, its tip's yarn read over the uncut yarns, its "
                        "cracks' corner bridges cut "
-                       "(fabric_fenicsx.fem.crack_bridges)"),
+                       "(fabric_fenicsx.fem.crack_bridges); del_zone_budget = del_zone whose snapped cells "
+                       "hold alpha 1/2 and break through with one yarn segment's work per yarn they cut, in "
+                       "the unit cell's energy (fabric_fenicsx.fem.crack_budget)"),
         "surrogate_cache": Key("", optional_text,
                                "directory of the surrogate's tile cache (\"\" = its default)"),
         "scatter": Key("none", choice("none", "fibrils", "weibull"),

@@ -9,7 +9,7 @@ the fill yarns along the slit kept, a crack band as a broken warp leaves it). Th
 reduced element with its hourglass control, the surrogate, the damping and the removal rules
 (deletion when both yarns are broken, erosion at ``erosion_strain``) are the impact scenes'; the
 failure rule is the thesis's or a candidate (``failure``: ``yarn_crack``, ``yarn_tip``,
-``yarn_strain``, ``shear_lag``, ``del_zone``, ``yarn_average``).
+``yarn_strain``, ``shear_lag``, ``del_zone``, ``del_zone_budget``, ``yarn_average``).
 
 The panel is meshed with cells of one size ``h`` (the tear's tip meets the same cells all the
 way) in families that tell the cells' orientation from their shape:
@@ -398,7 +398,8 @@ class TearTest:
         fallen below a tenth of its peak, or the right edge has moved three times the warp's
         failure strain. Returns the measures of the module
         docstring, the sampled history (``history``: t, force, tear length, energy) and the
-        final cells (``cells``: centres, corners, warp alpha, removed, slit) for pictures."""
+        final cells (``cells``: corners, warp alpha, the warp's damage dissipation per cell in J,
+        removed, slit, tear) for pictures."""
         from fabric_fenicsx.fem.explicit import CentralDifference
         from fabric_fenicsx.fem.yarn_stress import YarnStress
         from fabric_fenicsx.impact.removal import CellRemoval
@@ -500,6 +501,7 @@ class TearTest:
                 "viscous_dissipation": e["viscous_dissipation"], "end": end, "steps": cd.n_steps,
                 "seconds": time.perf_counter() - t0, "history": hist, "crack_away": elsewhere,
                 "cells": {"corners": self.corners, "alpha1": material.alpha1.reshape(-1, npc).min(axis=1),
+                          "warp_dissipation": material.point_dissipation[0].reshape(-1, npc).sum(axis=1),
                           "removed": ~removal.live_cells, "slit": np.isin(np.arange(m.n_cells), self.slit),
                           "tear": np.isin(np.arange(m.n_cells), tear_cells)}}
 
