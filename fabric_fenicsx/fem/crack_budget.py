@@ -51,7 +51,7 @@ __all__ = ["BREAKING_PATH_STEPS", "unit_cell_breaking_work", "break_through"]
 
 BREAKING_PATH_STEPS = 3000
 """Steps of the uniaxial strain path of :func:`unit_cell_breaking_work`: 3000 and 6000 steps give
-Zylon AS's warp budget within 0.1 % of each other (tests/test_crack_budget.py)."""
+Zylon AS's warp budget within 0.1 % of each other (tests/fem/test_crack_budget.py)."""
 
 
 def unit_cell_breaking_work(surrogate, family: int, steps: int = BREAKING_PATH_STEPS) -> float:
@@ -70,9 +70,9 @@ def unit_cell_breaking_work(surrogate, family: int, steps: int = BREAKING_PATH_S
     E_end = 0.5 * (mu_end * mu_end - 1.0)
     point = YarnStress(surrogate, np.ones(1), True)
     zero = np.zeros(1)
-    for E in np.linspace(0.0, E_end, steps + 1)[1:]:
+    for E in np.linspace(0.0, E_end, steps + 1)[1:]:   # one point: a path, not a hot loop
         e = np.full(1, E)
-        point.update(e, zero) if family == 0 else point.update(zero, e)
+        point.update(*((e, zero) if family == 0 else (zero, e)))
     left = (point.alpha1, point.alpha2)[family][0]
     if left > 0.0:
         raise RuntimeError(f"unit_cell_breaking_work: family {family} kept alpha {left:.3g} at Green strain "

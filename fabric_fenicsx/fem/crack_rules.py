@@ -7,12 +7,12 @@ from fabric_fenicsx.fem.yarn_tip import YarnTip
 
 __all__ = ["CRACK_RULES", "crack_rule_on_cells"]
 
+_DEL_ZONE = {"concentration_cap": SLIP_CONCENTRATION, "snap": True, "band": 3.0, "close_bridges": True,
+             "read_uncut": True}
+
 CRACK_RULES = {"yarn_crack": (YarnCrack, {}), "yarn_tip": (YarnTip, {}), "yarn_strain": (YarnTip, {"roots": True}),
-               "shear_lag": (ShearLag, {}),
-               "del_zone": (ShearLag, {"concentration_cap": SLIP_CONCENTRATION, "snap": True, "band": 3.0,
-                                           "close_bridges": True, "read_uncut": True}),
-               "del_zone_budget": (ShearLag, {"concentration_cap": SLIP_CONCENTRATION, "snap": True, "band": 3.0,
-                                              "close_bridges": True, "read_uncut": True, "budget": True})}
+               "shear_lag": (ShearLag, {}), "del_zone": (ShearLag, _DEL_ZONE),
+               "del_zone_budget": (ShearLag, {**_DEL_ZONE, "budget": True})}
 """Name -> (class, options): the yarn crack (:mod:`~fabric_fenicsx.fem.yarn_crack`), its tip that
 reads its yarn (:mod:`~fabric_fenicsx.fem.yarn_tip`; ``yarn_strain``: its start too), and its tip
 that breaks by Hedgepeth's concentration of its yarn (:mod:`~fabric_fenicsx.fem.shear_lag`;
