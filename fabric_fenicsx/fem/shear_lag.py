@@ -173,6 +173,7 @@ class ShearLag(YarnTip):
         self.joined = np.zeros(2, np.int64)        # cells that joined by the concentration, per family
         self.largest = np.zeros(2, np.int64)       # the largest n a joining tip saw, per family
         self.carried = np.full((2, n), np.nan)     # mu_i - 1 a crack cell's yarn carried as it joined
+        self._raised_key, self._raised_kept = [None, None], [None, None]   # see _raised_laws
         self.spacing = self.segment[::-1]          # family i's yarns lie the other family's segment apart
         extent = np.array([np.ptp(self.at[1 - i]) + self.width.max(initial=0.0) for i in range(2)])
         self.k_max = self.concentration(np.ceil(extent / self.spacing).astype(np.int64))
@@ -207,13 +208,18 @@ class ShearLag(YarnTip):
         first, and every crack cell not yet broken damaged at least as that stretch damages it
         (module docstring)."""
         cell_of = points // self.npc
-        live = np.bincount(cell_of, minlength=self.centres.shape[0]) > 0
+        count = np.bincount(cell_of, minlength=self.centres.shape[0])
+        live = count > 0
+        # both strains of the cells: a yarn's band reads the fill's too, which sets the warp's
+        # crimp (Eq. 2-17 ff.); none to read before a crack is near
+        E_cell = (np.stack([np.bincount(cell_of, weights=E, minlength=count.size) for E in (E1, E2)])
+                  / np.maximum(count, 1) if self.near.any() else None)
         driven = []
         for i in range(2):
             opened = (self.kind[i] != UNCRACKED) & ~self.broken[i]
             self.broken[i] |= opened & ~live
             self.broken[i, cell_of[opened[cell_of] & (a_old[i] <= BROKEN_ALPHA)]] = True
-            driven.append(self._raised(i, surrogate, points, cell_of, live, E1, E2, a_old))
+            driven.append(self._raised(i, surrogate, points, cell_of, live, E_cell, a_old))
         before = self.kind == ROOT
         b, redo = super().admit(surrogate, points, E1, E2, a_old, b_new)
         self._record_roots(np.argwhere((self.kind == ROOT) & ~before), surrogate, cell_of, E1, E2)
@@ -286,48 +292,26 @@ class ShearLag(YarnTip):
             cells = started[started[:, 0] == family, 1]
             if cells.size == 0:
                 continue
-            at = np.flatnonzero(np.isin(cell_of, cells))
+            at = np.flatnonzero(self.cell_mask(cells)[cell_of])
             ones = np.ones(at.size)
             mu = surrogate.evaluate(E1[at], E2[at], ones, ones)[2 + family]
             where = np.searchsorted(cells, cell_of[at])
             self.carried[family, cells] = np.bincount(where, weights=mu, minlength=cells.size) / \
                 np.bincount(where, minlength=cells.size) - 1.0
 
-    def _raised(self, family, surrogate, points, cell_of, live, E1, E2, a_old):
+    def _raised(self, family, surrogate, points, cell_of, live, E_cell, a_old):
         """(at, damage): the positions (into ``points``) of the tips of ``family``'s cracks and of
         its crack cells not yet broken, and the damage of family ``family`` there at their yarn's
-        raised stretch mu* (module docstring, the segment's law); the tips it damages join."""
-        none = (np.zeros(0, np.int64), np.zeros(0))
-        near = self.near[family] & live & ~self.broken[family]
-        candidates = np.flatnonzero(near & (self.kind[family] == UNCRACKED))
-        state, line = self._classified(family, candidates)
-        tips = candidates[state == TIP]
-        opened = np.flatnonzero(near & (self.kind[family] != UNCRACKED))
-        cells = np.concatenate((tips, opened))
-        line = np.concatenate((line[state == TIP], self.line[family, opened]))
-        n_broken, given, shed, cut = self._broken_yarns(family, cells, line)
-        keep = n_broken > 0
-        if not keep.any():
-            return none
-        order = np.argsort(cells[keep])
-        cells, line, n_broken, given, shed = (x[keep][order] for x in (cells, line, n_broken, given, shed))
-        cut = cut[:, keep][:, order]
-        count = np.bincount(cell_of, minlength=self.centres.shape[0])
-        # both strains of the yarn's band: the fill's strain sets the warp's crimp (Eq. 2-17 ff.)
-        far = self.yarn_strain(family, cells, np.stack([np.bincount(cell_of, weights=E, minlength=count.size)
-                                                        for E in (E1, E2)]) / np.maximum(count, 1), live,
-                               skip=cut if self.read_uncut else None)
-        at = np.flatnonzero(np.isin(cell_of, cells))
-        where = np.searchsorted(cells, cell_of[at])
+        raised stretch mu* (module docstring, the segment's law), from the cells' mean strains
+        ``E_cell`` (2, n_cells); the tips it damages join."""
+        crack = self._raised_laws(family, points, cell_of, live)
+        if crack is None:
+            return np.zeros(0, np.int64), np.zeros(0)
+        cells, line, n_broken, members, at, where, mu_raised, scale_raised = crack
+        far = self.band_median(cells, members, E_cell)
         e = [far[0][where], far[1][where]]
-        # mu* - 1 = a (mu - 1) + b as the segment's law of mu: critical 1 + (m - b) / a, scale s / a;
-        # where the shed load b alone passes the strength m the law starts at the table's floor
-        K = self.concentration(n_broken)[where]
-        a = 1.0 + (K - 1.0) * given[where]
-        b = (K - 1.0) * (1.0 - given[where]) * shed[where]
         mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
-        mu[family] = np.maximum(1.0 + (self.base[0][family, points[at]] - 1.0 - b) / a, self.mu_floor[family])
-        sc[family] = self.base[1][family, points[at]] / a
+        mu[family], sc[family] = mu_raised, scale_raised
         damage = surrogate.update(e[0], e[1], a_old[0, at], a_old[1, at], critical_stretch=mu,
                                   softening_scale=sc)[2 + family]
         hit = damage < a_old[family, at]
@@ -342,6 +326,48 @@ class ShearLag(YarnTip):
             self.largest[family] = max(int(self.largest[family]), int(n_broken[pick].max()))
             self._cracks_added(family, go)
         return at[hit], damage[hit]
+
+    def _raised_laws(self, family, points, cell_of, live):
+        """What :meth:`_raised` reads of the cracks: its cells (tips and crack cells not broken,
+        touching a broken part, sorted), their lines and broken yarns' counts, the cells' bands
+        (:meth:`~fabric_fenicsx.fem.yarn_tip.YarnTip.band_members`), the positions in ``points``
+        of their points and which cell each is, and family
+        ``family``'s raised law there (mu*_i as the segment's law of mu_i: critical stretch and
+        scale); None where no cell touches a broken part. It depends on the cracks (their cells,
+        lines, broken cells and what their yarns carried) and the live points only, which change
+        in a few steps of a run, and is kept until one of them does (compared whole: some 10 us
+        a step on 2433 cells)."""
+        key = tuple(x.tobytes() for x in (self.kind[family], self.line[family], self.broken[family],
+                                          self.near[family], self.carried[family], points))
+        if self._raised_key[family] == key:
+            return self._raised_kept[family]
+        self._raised_key[family], self._raised_kept[family] = key, None
+        near = self.near[family] & live & ~self.broken[family]
+        candidates = np.flatnonzero(near & (self.kind[family] == UNCRACKED))
+        state, line = self._classified(family, candidates)
+        tips = candidates[state == TIP]
+        opened = np.flatnonzero(near & (self.kind[family] != UNCRACKED))
+        cells = np.concatenate((tips, opened))
+        line = np.concatenate((line[state == TIP], self.line[family, opened]))
+        n_broken, given, shed, cut = self._broken_yarns(family, cells, line)
+        keep = n_broken > 0
+        if not keep.any():
+            return None
+        order = np.argsort(cells[keep])
+        cells, line, n_broken, given, shed = (x[keep][order] for x in (cells, line, n_broken, given, shed))
+        cut = cut[:, keep][:, order]
+        members = self.band_members(family, cells, live, skip=cut if self.read_uncut else None)
+        at = np.flatnonzero(self.cell_mask(cells)[cell_of])
+        where = np.searchsorted(cells, cell_of[at])
+        # mu* - 1 = a (mu - 1) + b as the segment's law of mu: critical 1 + (m - b) / a, scale s / a;
+        # where the shed load b alone passes the strength m the law starts at the table's floor
+        K = self.concentration(n_broken)[where]
+        a = 1.0 + (K - 1.0) * given[where]
+        b = (K - 1.0) * (1.0 - given[where]) * shed[where]
+        mu = np.maximum(1.0 + (self.base[0][family, points[at]] - 1.0 - b) / a, self.mu_floor[family])
+        self._raised_kept[family] = (cells, line, n_broken, members, at, where, mu,
+                                     self.base[1][family, points[at]] / a)
+        return self._raised_kept[family]
 
     def _broken_yarns(self, family: int, tips: np.ndarray, line: np.ndarray):
         """Per tip, of the broken part of the crack on its ``line`` that it touches: (n, given,

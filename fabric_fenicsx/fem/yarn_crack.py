@@ -216,6 +216,13 @@ class YarnCrack:
             self._stale[family, stale] = False
         return self._state[family, cells], self._state_line[family, cells].copy()
 
+    def cell_mask(self, cells: np.ndarray) -> np.ndarray:
+        """The cells' mask, True at ``cells``: ``cell_mask(cells)[cell_of]`` is ``np.isin(cell_of,
+        cells)`` without its sort or its pass per cell."""
+        mask = np.zeros(self.centres.shape[0], dtype=bool)
+        mask[cells] = True
+        return mask
+
     def neighbourhoods(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(other, owner): the cells within each of ``cells``' radius (itself included), flat, and
         the position in ``cells`` whose neighbourhood each belongs to."""
@@ -268,7 +275,7 @@ class YarnCrack:
             held = np.concatenate((cells[state == UNCRACKED], late))
             roots = cells[state == ROOT]
             if roots.size:
-                at = np.flatnonzero(np.isin(cell_of, roots))
+                at = np.flatnonzero(self.cell_mask(roots)[cell_of])
                 mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
                 mu[i], sc[i] = self.base[0][i, points[at]], self.base[1][i, points[at]]
                 _, _, c1, c2 = surrogate.update(E1[at], E2[at], a_old[0, at], a_old[1, at],
@@ -279,7 +286,7 @@ class YarnCrack:
                 started = self._one_per_neighbourhood(i, started)
                 self.kind[i, started], self.line[i, started] = ROOT, self.at[i, started]
                 self._cracks_added(i, started)
-                go = np.isin(cell_of[at], started)
+                go = self.cell_mask(started)[cell_of[at]]
                 self._use_law(i, started, segment=True)
                 b[:, at[go]] = full[:, go]
                 redo.append(at[go])
@@ -289,7 +296,7 @@ class YarnCrack:
                 self._use_law(i, waiting[~self._stale[i, waiting]], segment=True)
                 held = np.concatenate((held, waiting))
             self.held[i] += held.size
-            back = np.flatnonzero(np.isin(cell_of, held) & new)
+            back = np.flatnonzero(self.cell_mask(held)[cell_of] & new)
             b[i, back] = a_old[i, back]
             redo.append(back)
         redo = np.unique(np.concatenate(redo)) if redo else np.zeros(0, np.int64)

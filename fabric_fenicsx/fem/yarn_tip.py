@@ -84,6 +84,14 @@ class YarnTip(YarnCrack):
         band, (k, len(cells)) returned. ``skip`` (2, len(cells)): per cell a span (from, to) of
         x . d_j (the other family's direction) whose cells the band leaves out (a crack's cut
         yarns; NaN: none)."""
+        return self.band_median(cells, self.band_members(family, cells, live, skip), E_cell)
+
+    def band_members(self, family: int, cells: np.ndarray, live: np.ndarray,
+                     skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(member, owner): the cells of each of ``cells``' bands (:meth:`yarn_strain`, the same
+        arguments), flat, and the position in ``cells`` whose band each belongs to. They change
+        only with the cracks and the live cells: a caller that knows these unchanged may keep
+        them for :meth:`band_median`."""
         other, owner = self.neighbourhoods(cells)
         d = self.centres[other] - self.centres[cells[owner]]
         t = self.directions[family]
@@ -93,10 +101,16 @@ class YarnTip(YarnCrack):
         if skip is not None:
             at = self.at[1 - family, other]
             keep &= ~((at > skip[0, owner]) & (at < skip[1, owner]))
+        return other[keep], owner[keep]
+
+    @staticmethod
+    def band_median(cells: np.ndarray, members: tuple[np.ndarray, np.ndarray], E_cell: np.ndarray) -> np.ndarray:
+        """:meth:`yarn_strain` over the bands ``members`` (:meth:`band_members` of ``cells``)."""
+        member, owner = members
         values = np.atleast_2d(E_cell)
         out = np.empty((values.shape[0], cells.size))
         for k, value in enumerate(values):
-            median, count = grouped_median(value[other[keep]], owner[keep], cells.size)
+            median, count = grouped_median(value[member], owner, cells.size)
             out[k] = np.where(count > 0, median, value[cells])
         return out if np.ndim(E_cell) == 2 else out[0]
 
@@ -124,7 +138,7 @@ class YarnTip(YarnCrack):
         E = (E1, E2)
         E_cell = np.bincount(cell_of, weights=E[family], minlength=n) / np.maximum(count, 1)
         far = self.yarn_strain(family, cells, E_cell, live)
-        at = np.flatnonzero(np.isin(cell_of, cells))
+        at = np.flatnonzero(self.cell_mask(cells)[cell_of])
         e = [np.array(E1[at], float), np.array(E2[at], float)]
         e[family] = far[np.searchsorted(cells, cell_of[at])]
         mu, sc = self.mu_crit[:, points[at]].copy(), self.scale[:, points[at]].copy()
@@ -132,7 +146,7 @@ class YarnTip(YarnCrack):
         _, _, c1, c2 = surrogate.update(e[0], e[1], a_old[0, at], a_old[1, at],
                                         critical_stretch=mu, softening_scale=sc)
         damaged = (c1, c2)[family] < a_old[family, at]
-        return np.isin(cells, cell_of[at][damaged])
+        return self.cell_mask(cell_of[at][damaged])[cells]
 
     def summary(self) -> dict:
         """:meth:`YarnCrack.summary` with, per family, ``tips_held``: the cell-steps a cell on a

@@ -212,3 +212,41 @@ def test_the_del_zone_reads_its_tips_yarn_over_the_uncut_yarns_only():
         reads[uncut] = rule.yarn_strain(0, tip, strain, live, skip=cut if uncut else None)[0]
     assert reads[False] == pytest.approx(1.0) and reads[True] == pytest.approx(2.0)
     assert crack_rule_on_cells("del_zone", corners, (X, Y), zylon_as()).read_uncut
+
+
+def _flat(kept):
+    """The arrays of a kept crack reading (ShearLag._raised_laws), nested tuples flattened."""
+    out = []
+    for x in kept:
+        out.extend(_flat(x) if isinstance(x, tuple) else [np.asarray(x)])
+    return out
+
+
+def test_the_del_zones_kept_crack_reading_is_what_reading_the_cracks_anew_gives():
+    """The tips' cells, their bands and raised laws are kept while the cracks and the live cells
+    stay as they are (``ShearLag._raised_laws``): asked again they are the same object; after a
+    tip joins, and after it breaks, the reading equals one made anew, and the broken tip brings
+    the next cell on the line in (a key that missed the broken cells would keep the old one)."""
+    rule = _slit_rule(name="del_zone")
+    points = np.arange(N * N)
+    live = np.ones(N * N, dtype=bool)
+
+    def read(anew=False):
+        if anew:
+            rule._raised_key[0] = None
+        return rule._raised_laws(0, points, points, live)
+
+    first = read()
+    assert read() is first and list(first[0]) == [cell(7, 3)]
+    a = np.ones((2, N * N))
+    _step(rule, 0.55, 0.3, HalvingSurrogate(0.8), a)               # (7, 3) joins
+    joined = read()
+    assert rule.kind[0, cell(7, 3)] == TIP
+    for kept, fresh in zip(_flat(joined), _flat(read(anew=True))):
+        np.testing.assert_array_equal(kept, fresh)
+    a[0, cell(7, 3)] = 0.4                                         # and has broken
+    _step(rule, 0.55, 0.3, HalvingSurrogate(0.8), a)
+    broke = read()
+    assert cell(7, 4) in broke[0] and cell(7, 4) not in joined[0]
+    for kept, fresh in zip(_flat(broke), _flat(read(anew=True))):
+        np.testing.assert_array_equal(kept, fresh)
