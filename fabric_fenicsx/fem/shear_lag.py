@@ -242,8 +242,9 @@ class ShearLag(YarnTip):
     def budgets(self, surrogate, family: int, points, a_old, b) -> tuple[np.ndarray, np.ndarray]:
         """(at, budget): the positions in ``points`` of family ``family``'s snapped crack cells'
         points not yet broken through (a root's or a tip's, alpha at most 1/2 after this step's
-        admit, ``b``, and above 0 before it, ``a_old``), and their budgets per unit reference area
-        (J/m^2, :mod:`~fabric_fenicsx.fem.crack_budget`). None of them unless ``budget``."""
+        admit, ``b``, and above 0 before it, ``a_old``; each indexed by family, (2, m) or a pair),
+        and their budgets per unit reference area (J/m^2, :mod:`~fabric_fenicsx.fem.crack_budget`).
+        None of them unless ``budget``."""
         if not self.budget:
             return _NO_POINTS, np.zeros(0)
         cell_of = points // self.npc

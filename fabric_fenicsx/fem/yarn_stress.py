@@ -315,7 +315,7 @@ class YarnStress:
 
         done = [_NONE]
         for i, b in enumerate((b1, b2)):
-            at, budget = self.failure.budgets(self.sur, i, idx, np.stack((h1, h2)), np.stack((b1, b2)))
+            at, budget = self.failure.budgets(self.sur, i, idx, (h1, h2), (b1, b2))
             if at.size == 0:
                 continue
             p, k = idx[at], at.size

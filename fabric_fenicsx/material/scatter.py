@@ -137,6 +137,19 @@ def failure_stretch(law, mu_crit, scale) -> np.ndarray:
     return mu_crit + scale * span
 
 
+@njit(cache=True, nogil=True)
+def _first_outside(mu_crit, band, width, mu_safe, mu_complete):
+    """:func:`point_laws`' check for the exponential law (failure at mu_crit + band width): the
+    first flat index of (n, 2) ``mu_crit``, ``band`` outside the table's damage range, -1 if none
+    (NaN counts as outside, as numpy's comparisons)."""
+    for k in range(mu_crit.shape[0]):
+        for i in range(2):
+            m, s = mu_crit[k, i], band[k, i]
+            if not (m >= mu_safe[i] - 1e-12 and m + s * width <= mu_complete[i] + 1e-12 and s > 0.0):
+                return 2 * k + i
+    return -1
+
+
 def point_laws(law, critical_stretch, softening_scale, shape, mu_crit, band, mu_safe, mu_complete) -> None:
     """Each point's critical stretches (per yarn a scalar or an array of ``shape``) into
     ``mu_crit`` (n, 2) and its softening scales multiplied into ``band`` (n, 2), checked against
@@ -147,11 +160,16 @@ def point_laws(law, critical_stretch, softening_scale, shape, mu_crit, band, mu_
             mu_crit[:, i] = np.broadcast_to(np.asarray(critical_stretch[i], float), shape).ravel()
         if softening_scale is not None:
             band[:, i] *= np.broadcast_to(np.asarray(softening_scale[i], float), shape).ravel()
-    with np.errstate(invalid="ignore"):
-        failure = failure_stretch(law, mu_crit, band)            # alpha = 0 from there on
-        ok = (mu_crit >= mu_safe - 1e-12) & (failure <= mu_complete + 1e-12) & (band > 0.0)
-    if not ok.all():
-        n, i = np.argwhere(~ok)[0]
+    if isinstance(law, ExponentialDamage):   # one compiled pass: the check ran every step
+        first = _first_outside(mu_crit, band, float(law.width), np.asarray(mu_safe, float),
+                               np.asarray(mu_complete, float))
+    else:
+        with np.errstate(invalid="ignore"):
+            failure = failure_stretch(law, mu_crit, band)            # alpha = 0 from there on
+            ok = (mu_crit >= mu_safe - 1e-12) & (failure <= mu_complete + 1e-12) & (band > 0.0)
+        first = -1 if ok.all() else int(np.flatnonzero(~ok.ravel())[0])
+    if first >= 0:
+        n, i = divmod(first, 2)
         raise ValueError(
             f"point {n}, {FAMILIES[i]}: critical stretch {mu_crit[n, i]!r} with softening scale "
             f"{band[n, i]!r} lies outside the table's damage range (critical stretch >= "

@@ -70,6 +70,10 @@ def test_a_law_outside_the_tables_damage_range_is_refused(coarse_surrogate, wide
             wide.update(one, one, np.ones(1), np.ones(1), **laws)
     with pytest.raises(ValueError, match="damage_range"):
         coarse_surrogate.update(one, one, np.ones(1), np.ones(1), critical_stretch=(1.02, 1.03))
+    three = np.full(3, 0.03)   # the first point outside is named, a NaN law among them
+    with pytest.raises(ValueError, match="point 2, fill: critical stretch nan"):
+        wide.update(three, three, np.ones(3), np.ones(3),
+                    critical_stretch=(np.full(3, 1.03), np.array([1.03, 1.03, np.nan])))
 
 
 def _kernel_update(sur, E1, E2, hist, mu_crit, band, skips=True):
