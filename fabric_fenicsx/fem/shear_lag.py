@@ -332,12 +332,11 @@ class ShearLag(YarnTip):
         """What :meth:`_raised` reads of the cracks: its cells (tips and crack cells not broken,
         touching a broken part, sorted), their lines and broken yarns' counts, the cells' bands
         (:meth:`~fabric_fenicsx.fem.yarn_tip.YarnTip.band_members`), the positions in ``points``
-        of their points and which cell each is, and family
-        ``family``'s raised law there (mu*_i as the segment's law of mu_i: critical stretch and
-        scale); None where no cell touches a broken part. It depends on the cracks (their cells,
-        lines, broken cells and what their yarns carried) and the live points only, which change
-        in a few steps of a run, and is kept until one of them does (compared whole: some 10 us
-        a step on 2433 cells)."""
+        of their points and which cell each is, and family ``family``'s raised law there (mu*_i
+        as the segment's law of mu_i: critical stretch and scale); None where no cell touches a
+        broken part. It depends on the cracks (their cells, lines, broken cells and what their
+        yarns carried) and the live points only, which change in a few steps of a run, and is
+        kept until one of them does (the state compared whole: 10 us a call on 2433 cells)."""
         key = tuple(x.tobytes() for x in (self.kind[family], self.line[family], self.broken[family],
                                           self.near[family], self.carried[family], points))
         if self._raised_key[family] == key:
