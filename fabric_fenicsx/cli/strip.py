@@ -8,10 +8,13 @@ mesh family (``--families``, default aligned,free) and cell size (``--sizes`` in
 the weave's integrity (``membrane.shear_modulus``; default 0, the thesis's membrane), with
 ``--cell-rule patch`` or ``yarn`` the measured alternatives to how a cell reads the field
 (:func:`~fabric_fenicsx.material.scatter.cell_laws`; default weakest),
-with ``--crack-band`` each cell's softening shortened to that of one segment (scale l / h). The
+with ``--crack-band`` each cell's softening shortened to that of one segment (scale l / h), with
+``--failure`` the failure rule (thesis, the default, or a crack-tracking rule of
+:data:`~fabric_fenicsx.fem.crack_rules.CRACK_RULES`, the scenes' ``material.failure``). The
 meshes run side by side in ``--jobs`` processes; each writes
 OUT/strip-<family>-<size>.csv a row per pull as it ends, and a study run again resumes from
-them. Writes OUT/strip.json, OUT/strip.png and prints the distributions and their comparison.
+them; OUT/strip-setup.json keeps the options that decide a pull, and a study into an OUT of
+other options is refused. Writes OUT/strip.json, OUT/strip.png and prints the distributions and their comparison.
 Every option and OUT are checked before any pull (one line, exit 2, no folder left); the study
 holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`) while it writes there, so a second one into
 OUT stops at once. Its pulls run on this machine only: ``--scheduler`` is refused.
@@ -27,12 +30,34 @@ from pathlib import Path
 PROG = "fabric-fenicsx study strip"
 
 
+SETUP_FILE = "strip-setup.json"
+
+
+def pull_options(args) -> dict:
+    """The options that decide a pull (kept in OUT/strip-setup.json)."""
+    return {"scatter": args.scatter, "shear_modulus": args.shear_modulus, "cell_rule": args.cell_rule,
+            "crack_band": bool(args.crack_band), "failure": args.failure}
+
+
 def _problems(args, sizes: list[float], families: list[str]) -> list[str]:
     """What is wrong with the strip's options (each a line's part)."""
     from fabric_fenicsx.cli._checks import out_problem
+    from fabric_fenicsx.fem.crack_rules import CRACK_RULES
     from fabric_fenicsx.material.scatter import CELL_RULES, SCATTER_MODELS
 
     problems = []
+    if args.failure != "thesis" and args.failure not in CRACK_RULES:
+        problems.append(f"--failure must be thesis or one of {list(CRACK_RULES)} for strip, got {args.failure!r}")
+    kept = Path(args.out) / SETUP_FILE
+    if kept.is_file():
+        try:
+            before = json.loads(kept.read_text())
+        except (OSError, ValueError) as err:
+            before = {"unreadable": str(err)}
+        if before != pull_options(args):
+            changed = ", ".join(f"{k} {before.get(k)!r} -> {v!r}" for k, v in pull_options(args).items()
+                                if before.get(k) != v)
+            problems.append(f"{args.out} holds pulls of other options ({changed}): give another --out")
     if args.scatter not in SCATTER_MODELS[1:]:
         problems.append(f"--scatter must be one of {list(SCATTER_MODELS[1:])}, got {args.scatter!r}")
     if not all(0 < h <= 0.005 for h in sizes):
@@ -95,6 +120,7 @@ def _pull(args, sizes: list[float], families: list[str]) -> int:
     out.mkdir(parents=True, exist_ok=True)
     configs = [(f, h) for f in families for h in sizes]
     paths = {c: out / table_name(*c) for c in configs}
+    (out / SETUP_FILE).write_text(json.dumps(pull_options(args), indent=1))
     seeds = list(range(args.seeds))
     t0 = time.perf_counter()
     jobs = max(1, min(len(configs), args.jobs or cpu_count()))
@@ -103,7 +129,7 @@ def _pull(args, sizes: list[float], families: list[str]) -> int:
               f"{jobs} at a time, into {out}", flush=True)
     with multiprocessing.get_context("spawn").Pool(jobs) as pool:
         setup = strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule,
-                                 crack_band=args.crack_band)
+                                 crack_band=args.crack_band, failure=args.failure)
         pending = [pool.apply_async(strip.run_configuration, (f, h, args.scatter, seeds, str(paths[(f, h)]), setup))
                    for f, h in configs]
         for (f, h), job in zip(configs, pending):
@@ -113,8 +139,7 @@ def _pull(args, sizes: list[float], families: list[str]) -> int:
     tables = {c: strip.read_table(paths[c]) for c in configs}
     report = strip.summarise(tables)
     report.update(scatter=args.scatter, seeds=args.seeds,
-                  setup=strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule,
-                                         crack_band=args.crack_band).__dict__,
+                  setup=setup.__dict__,
                   wall_time_s=time.perf_counter() - t0)
     (out / "strip.json").write_text(json.dumps(report, indent=1))
     strip.plot(tables, report, out / "strip.png")

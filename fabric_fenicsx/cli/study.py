@@ -81,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--grips", default="clamped",
                         help="tear: the pulled edges clamped (every component held) or rollers (free along y)")
     parser.add_argument("--failure", default="thesis",
-                        help="tear: the failure rule: thesis, yarn_crack (a broken yarn tears along the other "
+                        help="tear, strip: the failure rule (strip: all but yarn_average): thesis, yarn_crack (a broken yarn tears along the other "
                              "family with one segment's energy), yarn_tip (the yarn crack whose tip runs on "
                              "when its yarn, read along it, reaches its strength), yarn_strain (the same for "
                              "a crack's start too), shear_lag (its tip breaks when its yarn's stretch, raised "

@@ -14,8 +14,12 @@ and the strengths of many seeds are the strip's strength distribution. The study
 two mesh sizes and two mesh families (``aligned``: a grid along the yarns; ``free``: gmsh's
 unstructured quadrilaterals) and compares the distributions: whether the rule by which a cell
 reads the field (:func:`~fabric_fenicsx.material.scatter.cell_laws`) makes the failure
-statistics independent of the cell size. ``fabric-fenicsx study strip`` is its command line;
-it writes strip.csv (a row per seed as it ends), strip.json and strip.png.
+statistics independent of the cell size. The failure rule is the thesis's (each point's own law)
+or a crack-tracking one (``failure``: a name of :data:`~fabric_fenicsx.fem.crack_rules.CRACK_RULES`,
+the scenes' ``material.failure``): a rule that follows the yarns should leave the strip's
+strength distribution as it is, since a strip breaks at its weakest segment either way.
+``fabric-fenicsx study strip`` is its command line; it writes strip.csv (a row per seed as it
+ends), strip.json and strip.png.
 """
 from __future__ import annotations
 
@@ -42,6 +46,13 @@ class StripSetup:
     crack_band: bool = False     # softening scales x l / h (l = a warp segment, h = the cell's length)
     shear_modulus: float = 0.0  # N/m: isotropic in-plane shear (membrane.shear_modulus), 0 = the thesis's
     t_max: float = 0.0          # 0: until the strain reaches twice the warp's failure strain
+    failure: str = "thesis"     # "thesis" (each point's own law) or one of fem.crack_rules.CRACK_RULES
+
+    def __post_init__(self):
+        from fabric_fenicsx.fem.crack_rules import CRACK_RULES
+
+        if self.failure != "thesis" and self.failure not in CRACK_RULES:
+            raise ValueError(f"failure = {self.failure!r}: must be thesis or one of {', '.join(CRACK_RULES)}")
 
 
 def strip_mesh(family: str, h: float, setup: StripSetup, comm):
@@ -119,6 +130,26 @@ class StripTest:
             scale = scale * np.minimum(1.0, 2.0 * self.fabric.warp.w / length)[:, None]
         return mu_crit, scale
 
+    def crack_rule(self, laws=None):
+        """The crack-tracking rule of this setup (``failure``) on this strip's cells with the cell
+        laws ``laws`` (None: the fabric's), or None for the thesis's rule."""
+        if self.setup.failure == "thesis":
+            return None
+        from fabric_fenicsx.fem.crack_rules import crack_rule_on_cells
+
+        return crack_rule_on_cells(self.setup.failure, self.corners, (np.array([1.0, 0.0]), np.array([0.0, 1.0])),
+                                   self.fabric, self.membrane.n_points_per_cell, laws, self.comm)
+
+    def damage_range(self, scatter, laws):
+        """The damage range (:class:`~fabric_fenicsx.material.scatter.DamageRange`) a pull with the
+        cell laws ``laws`` of ``scatter`` (None: the fabric's own law) needs of the surrogate's
+        table, the failure rule's included; None: the fabric's own range."""
+        from fabric_fenicsx.material.scatter import DamageRange
+
+        own = scatter.damage_range(self.fabric, *laws) if laws is not None else None
+        rule = self.crack_rule(laws)
+        return DamageRange.union(rule.damage_range(), own) if rule is not None else own
+
     def pull(self, surrogate, laws=None) -> dict:
         """Pull the strip with the cell laws ``laws`` (None: the fabric's own law) to failure:
         {"peak_force" (N), "strain_at_peak" (end displacement / length), "steps", "seconds",
@@ -133,6 +164,9 @@ class StripTest:
         m.restart()                  # every pull starts intact, from the reference state
         material = YarnStress(surrogate, m.quadrature_weights_detJ, True, self.beta,
                               straight_modulus=self.k_straight, laws=laws)
+        rule = self.crack_rule(laws)
+        if rule is not None:
+            material.failure = rule
         for term in m.terms:
             if term.follows_integrity:
                 term.follow(lambda: material.state, material.tension)
@@ -145,6 +179,8 @@ class StripTest:
         t_max = s.t_max or 2.0 * (math.sqrt(1 + 2 * E_fail) - 1.0) * s.length / s.speed
         peak, peak_strain, force = 0.0, 0.0, 0.0
         while cd.time < t_max:
+            if rule is not None:
+                rule.time = cd.time
             cd.step(dt)
             if cd.n_steps % 10 == 0:
                 dt = cd.stable_dt()
@@ -220,9 +256,7 @@ def run_configuration(family: str, h: float, model: str, seeds: list[int], path:
     test = StripTest(fabric, family, h, setup)
     todo = [s for s in [-1, *seeds] if s not in done]
     laws = {s: (None if s < 0 else test.laws(StrengthScatter(model, seed=s))) for s in todo}
-    ranges = [StrengthScatter(model).damage_range(fabric, *law) for law in laws.values() if law is not None]
-    damage_range = (DamageRange(np.min([r.mu_crit_min for r in ranges], axis=0),
-                                np.max([r.mu_complete_max for r in ranges], axis=0)) if ranges else None)
+    damage_range = DamageRange.union(*(test.damage_range(StrengthScatter(model), law) for law in laws.values()))
     surrogate = Surrogate(fabric, progress=False, workers=1, damage_range=damage_range)
     for seed in todo:
         r = test.pull(surrogate, laws[seed])
