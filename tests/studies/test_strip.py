@@ -85,3 +85,47 @@ def test_the_crack_band_variant_shortens_every_cells_softening_to_one_segments()
     band = StripTest(fabric, "aligned", 0.005, StripSetup(crack_band=True)).laws(scatter)
     assert np.array_equal(band[0], plain[0])
     assert band[1] == pytest.approx(plain[1] * 2 * fabric.warp.w / 0.005, rel=1e-12)
+
+
+def test_a_crack_rule_breaks_the_strip_at_its_weakest_segment_as_the_thesiss_rule_does():
+    """A strip breaks at its weakest segment whichever rule tears it afterwards: the del zone's
+    rule (``failure``) leaves the peak force where the thesis's rule puts it, and it is the rule
+    that tears the strip: its cells break through with one segment's work per yarn, so the
+    strip dissipates less than under each point's own softening."""
+    from fabric_fenicsx.material.fabric import zylon_as
+    from fabric_fenicsx.material.scatter import DamageRange, StrengthScatter
+    from fabric_fenicsx.studies.strip import StripSetup, StripTest
+    from fabric_fenicsx.surrogate.table import Surrogate
+
+    fabric, scatter = zylon_as(), StrengthScatter("weibull", seed=1)
+    thesis = StripTest(fabric, "aligned", 0.005)
+    del_zone = StripTest(fabric, "aligned", 0.005, StripSetup(failure="del_zone_budget"))
+    laws = thesis.laws(scatter)
+    assert np.array_equal(del_zone.laws(scatter)[0], laws[0])
+    assert thesis.crack_rule(laws) is None and thesis.damage_range(scatter, None) is None
+    surrogate = Surrogate(fabric, progress=False, workers=1,
+                          damage_range=DamageRange.union(thesis.damage_range(scatter, laws),
+                                                         del_zone.damage_range(scatter, laws)))
+    a, b = thesis.pull(surrogate, laws), del_zone.pull(surrogate, laws)
+    assert b["peak_force"] == pytest.approx(a["peak_force"], rel=0.01)
+    assert b["strain_at_peak"] == pytest.approx(a["strain_at_peak"], rel=0.02)
+    assert b["damage_dissipation"] < 0.7 * a["damage_dissipation"]
+    with pytest.raises(ValueError, match="yarn_average"):
+        StripSetup(failure="yarn_average")
+
+
+def test_a_strip_study_into_a_folder_of_other_options_is_refused(tmp_path):
+    out = tmp_path / "s"
+    out.mkdir()
+    kept = {"scatter": "weibull", "shear_modulus": 0.0, "cell_rule": "weakest", "crack_band": False,
+            "failure": "thesis"}
+    (out / "strip-setup.json").write_text(json.dumps(kept))
+    cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "study", "strip", "--out", str(out)]
+    proc = subprocess.run(cmd + ["--failure", "del_zone_budget"], env=mpi_env(), capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2
+    assert "failure 'thesis' -> 'del_zone_budget'" in proc.stderr and "another --out" in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["strip-setup.json"]
+    bad = subprocess.run(cmd + ["--failure", "yarn_average"], env=mpi_env(), capture_output=True, text=True,
+                         timeout=120)
+    assert bad.returncode == 2 and "--failure must be thesis or one of" in bad.stderr
