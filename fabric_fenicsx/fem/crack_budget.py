@@ -43,6 +43,8 @@ Pure numpy but for :func:`unit_cell_breaking_work`, which asks the surrogate.
 """
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from fabric_fenicsx.fem.yarn_crack import BROKEN_ALPHA
@@ -54,16 +56,30 @@ BREAKING_PATH_STEPS = 3000
 Zylon AS's warp budget within 0.1 % of each other (tests/fem/test_crack_budget.py)."""
 
 
+_WORKS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+"""surrogate -> {(family, steps): W_i}: the path is a second a family, and every pull of a
+study (or rule of an ensemble) on one surrogate asks the same."""
+
+
 def unit_cell_breaking_work(surrogate, family: int, steps: int = BREAKING_PATH_STEPS) -> float:
     """W_i of the module docstring (J/m^2 of reference area): the damage dissipation of one
     point of ``surrogate`` strained along yarn ``family`` (0 warp, 1 fill) from 0 to past the
-    segment's law's complete failure in ``steps`` equal steps, the other yarn's strain 0."""
-    from fabric_fenicsx.fem.yarn_stress import YarnStress
-
+    segment's law's complete failure in ``steps`` equal steps, the other yarn's strain 0.
+    Computed once per surrogate, family and ``steps``."""
     if family not in (0, 1):
         raise ValueError(f"family must be 0 (warp) or 1 (fill), got {family!r}")
     if steps < 100:
         raise ValueError(f"steps = {steps!r}: the path needs at least 100 steps to resolve the law")
+    known = _WORKS.setdefault(surrogate, {})
+    if (family, steps) not in known:
+        known[(family, steps)] = _breaking_path(surrogate, family, steps)
+    return known[(family, steps)]
+
+
+def _breaking_path(surrogate, family: int, steps: int) -> float:
+    """:func:`unit_cell_breaking_work` along its path, not memoised."""
+    from fabric_fenicsx.fem.yarn_stress import YarnStress
+
     fabric = surrogate.fabric
     mu_crit = fabric.yarns[family].mu_crit
     mu_end = 1.0 + 1.5 * (float(fabric.damage.mu_complete(mu_crit)) - 1.0)

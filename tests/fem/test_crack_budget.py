@@ -70,3 +70,12 @@ def test_the_budgets_del_zone_cells_each_give_up_their_budget_and_the_tear_the_s
     assert r["work_per_length"] == pytest.approx(W * h0, rel=0.10)
     held = (cells["alpha1"] > 0.0) & (cells["alpha1"] < 1.0) & ~cells["slit"]
     assert np.all(cells["alpha1"][held] >= 0.5 - 1e-12)   # a snapped cell holds half its yarns
+
+
+def test_the_breaking_work_is_walked_once_per_surrogate_and_is_the_paths(surrogate, monkeypatch):
+    from fabric_fenicsx.fem import crack_budget
+
+    walked = crack_budget._breaking_path(surrogate, 1, 500)
+    assert unit_cell_breaking_work(surrogate, 1, steps=500) == walked
+    monkeypatch.setattr(crack_budget, "_breaking_path", lambda *a: pytest.fail("the path was walked again"))
+    assert unit_cell_breaking_work(surrogate, 1, steps=500) == walked
