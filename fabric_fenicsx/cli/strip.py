@@ -13,7 +13,8 @@ with ``--crack-band`` each cell's softening shortened to that of one segment (sc
 :data:`~fabric_fenicsx.fem.crack_rules.CRACK_RULES`, the scenes' ``material.failure``). The
 meshes run side by side in ``--jobs`` processes; each writes
 OUT/strip-<family>-<size>.csv a row per pull as it ends, and a study run again resumes from
-them; OUT/strip-setup.json keeps the options that decide a pull, and a study into an OUT of
+them; ``--against DIR`` compares every mesh with another strip study's in DIR (another rule, say),
+fabric by fabric (:func:`~fabric_fenicsx.studies.strip.against`). OUT/strip-setup.json keeps the options that decide a pull, and a study into an OUT of
 other options is refused. Writes OUT/strip.json, OUT/strip.png and prints the distributions and their comparison.
 Every option and OUT are checked before any pull (one line, exit 2, no folder left); the study
 holds OUT's lock (:mod:`fabric_fenicsx.impact.lock`) while it writes there, so a second one into
@@ -80,6 +81,14 @@ def _problems(args, sizes: list[float], families: list[str]) -> list[str]:
     if args.scheduler is not None:
         problems.append("--scheduler is not available for strip: its pulls run in processes on this machine "
                         "(--jobs)")
+    if args.against is not None:
+        there = [table_name(f, h) for f in families for h in sizes
+                 if (Path(args.against) / table_name(f, h)).is_file()]
+        if not there:
+            problems.append(f"--against {args.against} holds no strip table of these meshes "
+                            f"({', '.join(names)})")
+        elif Path(args.against).resolve() == Path(args.out).resolve():
+            problems.append("--against must be another study's folder than --out")
     problems += [p for p in (out_problem(args.out),) if p]
     return problems
 
@@ -141,8 +150,17 @@ def _pull(args, sizes: list[float], families: list[str]) -> int:
     report.update(scatter=args.scatter, seeds=args.seeds,
                   setup=setup.__dict__,
                   wall_time_s=time.perf_counter() - t0)
+    if args.against is not None:
+        other = Path(args.against)
+        others = {c: strip.read_table(other / table_name(*c)) for c in configs if (other / table_name(*c)).is_file()}
+        kept = other / SETUP_FILE
+        label = (f"failure {json.loads(kept.read_text()).get('failure', 'thesis')}" if kept.is_file()
+                 else str(other))
+        report["against"] = {"folder": str(other), "label": label, "meshes": strip.against(tables, others)}
     (out / "strip.json").write_text(json.dumps(report, indent=1))
     strip.plot(tables, report, out / "strip.png")
     print(strip.format_report(report))
+    if args.against is not None:
+        print(strip.format_against(report["against"]["meshes"], report["against"]["label"]))
     print(f"report in {out / 'strip.json'}, picture {out / 'strip.png'}")
     return 0

@@ -101,6 +101,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="strip: how a cell reads the segments it covers, weakest, patch or yarn (default weakest)")
     parser.add_argument("--crack-band", action="store_true",
                         help="strip: shorten each cell's softening to one segment's (scale l / h)")
+    parser.add_argument("--against", default=None, metavar="DIR",
+                        help="strip: compare every mesh, fabric by fabric, with the strip study in DIR")
     parser.add_argument("--shear-modulus", type=float, default=0.0,
                         help="strip: isotropic in-plane shear stiffness G (N/m, default 0: the thesis's membrane)")
     from fabric_fenicsx.cli._guarded import add_scheduler_argument

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["StripSetup", "strip_mesh", "StripTest", "weibull_fit", "compare"]
+__all__ = ["StripSetup", "strip_mesh", "StripTest", "weibull_fit", "compare", "paired", "against"]
 
 
 @dataclass(frozen=True)
@@ -224,6 +224,45 @@ def compare(a, b) -> dict:
     out["welch_p"] = float(stats.ttest_ind(a, b, equal_var=False).pvalue) if va + vb > 0 else 1.0
     out["ks_p"] = float(stats.ks_2samp(a, b).pvalue)
     return out
+
+
+def paired(a: dict, b: dict) -> dict:
+    """Two studies' tables of one mesh ({seed: row}, :func:`read_table`) compared fabric by
+    fabric over the seeds both pulled (the scattered ones, seed >= 0): ``n``, the mean of the
+    strength differences a - b with its 95 % interval (Student t over the pairs), their sd and the
+    two samples' correlation; and :func:`compare` of the same seeds unpaired (``unpaired``)."""
+    from scipy import stats
+
+    seeds = sorted(s for s in set(a) & set(b) if s >= 0)
+    if len(seeds) < 3:
+        raise ValueError(f"paired: {len(seeds)} seeds in common, at least 3 are needed")
+    x = np.array([a[s]["peak_force"] for s in seeds])
+    y = np.array([b[s]["peak_force"] for s in seeds])
+    d = x - y
+    sd = float(d.std(ddof=1))
+    return {"n": len(seeds), "mean_difference": float(d.mean()),
+            "difference_ci95": float(stats.t.ppf(0.975, d.size - 1) * sd / math.sqrt(d.size)),
+            "sd_difference": sd, "correlation": float(np.corrcoef(x, y)[0, 1]) if sd > 0 else 1.0,
+            "unpaired": compare(x, y)}
+
+
+def against(tables: dict, others: dict) -> dict:
+    """Every mesh of two studies ({(family, h): {seed: row}} each) that both pulled, compared seed
+    by seed (:func:`paired`), by the mesh's name (``aligned 2 mm``)."""
+    return {f"{family} {h * 1e3:g} mm": paired(tables[(family, h)], others[(family, h)])
+            for family, h in sorted(set(tables) & set(others))}
+
+
+def format_against(report: dict, label: str) -> str:
+    """:func:`against`'s report as a line per mesh (this study - ``label``)."""
+    lines = []
+    for name, c in report.items():
+        u = c["unpaired"]
+        lines.append(f"{name}, this - {label}, {c['n']} fabrics: paired {c['mean_difference']:+.1f} +- "
+                     f"{c['difference_ci95']:.1f} N (sd {c['sd_difference']:.1f} N, correlation "
+                     f"{c['correlation']:.3f}); means {u['mean_a']:.1f} +- {u['ci95_a']:.1f} against "
+                     f"{u['mean_b']:.1f} +- {u['ci95_b']:.1f} N, Welch p = {u['welch_p']:.3f}, KS p = {u['ks_p']:.3f}")
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------- the study

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from fabric_fenicsx.studies.strip import compare, read_table, weibull_fit
+from fabric_fenicsx.studies.strip import compare, paired, read_table, weibull_fit
 from conftest import mpi_env
 
 
@@ -23,6 +23,20 @@ def test_weibull_fit_and_two_sample_comparison_on_known_samples():
     assert abs(same["difference"]) < same["difference_ci95"] and same["welch_p"] > 0.05
     shifted = compare(x[:2000] * 1.05, x[2000:])
     assert shifted["difference"] > shifted["difference_ci95"] and shifted["ks_p"] < 1e-3
+
+
+def test_two_studies_are_paired_fabric_by_fabric_over_the_seeds_both_pulled():
+    rng = np.random.default_rng(5)
+    strength = 1000.0 * rng.weibull(12.0, 60)
+    a = {s: {"peak_force": float(x)} for s, x in enumerate(strength)}
+    b = {s: {"peak_force": float(x) + 5.0 + rng.normal(0.0, 1.0)} for s, x in enumerate(strength[:50])}
+    a[-1] = b[-1] = {"peak_force": 1500.0}          # the strip without scatter is no fabric of the pairs
+    c = paired(a, b)
+    assert c["n"] == 50 and c["correlation"] > 0.99
+    assert abs(c["mean_difference"] + 5.0) < c["difference_ci95"] < 1.0     # the offset, resolved by the pairs
+    assert c["unpaired"]["difference_ci95"] > 10 * c["difference_ci95"]     # and lost in the fabrics' scatter
+    with pytest.raises(ValueError, match="at least 3"):
+        paired(a, {0: b[0], 1: b[1]})
 
 
 def uniaxial_strength(width: float) -> float:
@@ -64,6 +78,16 @@ def test_strip_study_strengths_and_resume(tmp_path):
     again = subprocess.run(cmd, env=mpi_env(), capture_output=True, text=True, timeout=900)
     assert again.returncode == 0, again.stderr[-3000:]
     assert {p.name: p.read_text() for p in out.glob("*.csv")} == before     # nothing pulled again
+    # the same fabrics torn by the del zone's rule, paired with these: the same strengths
+    other = tmp_path / "del_zone"
+    proc = subprocess.run([*cmd[:-1], str(other), "--families", "aligned", "--failure", "del_zone_budget",
+                           "--against", str(out)], env=mpi_env(), capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    pair = json.loads((other / "strip.json").read_text())["against"]
+    assert pair["label"] == "failure thesis" and list(pair["meshes"]) == ["aligned 5 mm"]
+    c = pair["meshes"]["aligned 5 mm"]
+    assert c["n"] == 3 and abs(c["mean_difference"]) < 0.01 * report["meshes"]["aligned 5 mm"]["mean"]
+    assert "this - failure thesis, 3 fabrics: paired" in proc.stdout
 
 
 def test_bad_strip_options_stop_before_any_work(tmp_path):
@@ -129,3 +153,8 @@ def test_a_strip_study_into_a_folder_of_other_options_is_refused(tmp_path):
     bad = subprocess.run(cmd + ["--failure", "yarn_average"], env=mpi_env(), capture_output=True, text=True,
                          timeout=120)
     assert bad.returncode == 2 and "--failure must be thesis or one of" in bad.stderr
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    lonely = subprocess.run(cmd + ["--against", str(empty)], env=mpi_env(), capture_output=True, text=True,
+                            timeout=120)
+    assert lonely.returncode == 2 and "holds no strip table of these meshes" in lonely.stderr
