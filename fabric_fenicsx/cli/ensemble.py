@@ -7,7 +7,9 @@ absorbed energy, the viscous dissipation and its share, the deflection at damage
 from the impact point the first yarn breaks, and the removed cells (:mod:`fabric_fenicsx.studies.ensemble`). Writes OUT/ensemble.csv (a row as each
 member ends), OUT/ensemble.json, OUT/ensemble.png and each member's output (OUT/member_<k>).
 Unless ``--quiet``, a line per member as it ends and a progress line (members done, time
-elapsed, about how long is left).
+elapsed, about how long is left). With ``--seeds``, ``--against DIR`` pairs the members with
+another ensemble's of the same fabrics (DIR/ensemble.csv: another mesh, another rule) seed by
+seed (:func:`~fabric_fenicsx.studies.ensemble.against`), into the report as ``against``.
 
 ``--scheduler tcp://HOST:8786`` runs the members on the workers of a dask cluster instead
 (``local:N``: N workers on this machine; :mod:`fabric_fenicsx.studies.executor`), ``--jobs`` at a
@@ -41,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="members are fabrics of the scene's strength scatter (material.scatter): "
                              "seeds FIRST, FIRST+1, ... at the scene's velocity, instead of the velocity "
                              "changed by k x --perturbation")
+    parser.add_argument("--against", default=None, metavar="DIR",
+                        help="with --seeds: pair the members seed by seed with the ensemble in DIR "
+                             "(the same fabrics on another mesh, or under another rule)")
     parser.add_argument("--jobs", type=int, default=None,
                         help="members run at the same time (default: the cores, or with --scheduler the "
                              "cluster's worker threads; at most the members)")
@@ -70,6 +75,11 @@ def run(args: argparse.Namespace) -> int:
         problems.append(f"--jobs must be at least 1, got {args.jobs}")
     if scheduler_problem(args.scheduler):
         problems.append(scheduler_problem(args.scheduler))
+    if args.against is not None:
+        if args.seeds is None:
+            problems.append("--against pairs fabrics: it needs --seeds (round-off twins of one fabric do not pair)")
+        elif not (Path(args.against) / "ensemble.csv").is_file():
+            problems.append(f"--against {args.against} holds no ensemble.csv")
     if problems:
         print(f"{PROG}: " + "; ".join(problems), file=sys.stderr)
         return 2
@@ -80,6 +90,8 @@ def run(args: argparse.Namespace) -> int:
                              "with scatter none every seed is the same fabric")
         out = Path(args.out or Path("out") / f"ensemble-{scene.name}")
         check_output_dir(str(out))
+        if args.against is not None and Path(args.against).resolve() == out.resolve():
+            raise InputError("--against must name another ensemble's folder than --out")
     except InputError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
         return 2
@@ -133,10 +145,15 @@ def _members(args: argparse.Namespace, scene, out: Path, p: float, executor) -> 
     ok = [r for r in rows if "error" not in r]
     rep = ensemble.summarise(ok, p, first_seed=args.seeds)
     rep.update(scene=str(args.scene), overrides=list(args.overrides), failed=[r for r in rows if "error" in r])
+    if args.against is not None:
+        rep["against"] = {"folder": str(args.against),
+                          **ensemble.against(ok, ensemble.read_members(Path(args.against) / "ensemble.csv"))}
     write_atomic(out / "ensemble.json", json.dumps(rep, indent=1))
     if ok:
         ensemble.plot(rep, out / "ensemble.png", title=f"{scene.name}: {len(ok)} members")
     print(ensemble.format_summary(rep))
+    if args.against is not None:
+        print(ensemble.format_against(rep["against"], str(args.against)))
     print(f"report in {out / 'ensemble.json'}, members in {table}")
     if rep["failed"]:
         print(f"{PROG}: {len(rep['failed'])} of {len(rows)} members failed; their logs are in "

@@ -112,6 +112,62 @@ def format_summary(rep: dict) -> str:
     return "\n".join(lines)
 
 
+PAIRED = ("residual_velocity", "absorbed_energy", "viscous_share")
+"""The quantities :func:`against` pairs."""
+
+
+def read_members(path: str | Path) -> list[dict]:
+    """The members of an ensemble's table (OUT/ensemble.csv) that ended without error, numbers as
+    floats (empty cells: None) and ``seed`` as an int (None for round-off twins)."""
+    import csv
+
+    rows = []
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            if r.get("error"):
+                continue
+            row = {}
+            for key, value in r.items():
+                try:
+                    row[key] = float(value) if value not in ("", None) else None
+                except ValueError:
+                    row[key] = value
+            row["seed"] = int(row["seed"]) if row.get("seed") is not None else None
+            rows.append(row)
+    return rows
+
+
+def against(rows: list[dict], others: list[dict]) -> dict:
+    """Two ensembles of the same fabrics (on two meshes, or under two rules) paired by seed over
+    the seeds both ran: per quantity of :data:`PAIRED`, :func:`~fabric_fenicsx.studies.means.paired`
+    of this - other, with ``seeds`` the seeds paired."""
+    from fabric_fenicsx.studies.means import paired
+
+    mine = {r["seed"]: r for r in rows if r.get("seed") is not None}
+    theirs = {r["seed"]: r for r in others if r.get("seed") is not None}
+    seeds = sorted(set(mine) & set(theirs))
+    out = {"seeds": seeds}
+    for q in PAIRED:
+        both = [s for s in seeds if mine[s].get(q) is not None and theirs[s].get(q) is not None]
+        out[q] = paired([mine[s][q] for s in both], [theirs[s][q] for s in both]) if len(both) >= 3 else None
+    return out
+
+
+def format_against(pairs: dict, label: str) -> str:
+    """:func:`against` as lines: this - ``label``, per quantity."""
+    units = {"residual_velocity": ("m/s", 1.0), "absorbed_energy": ("J", 1.0), "viscous_share": ("%", 100.0)}
+    lines = [f"paired by fabric with {label} ({len(pairs['seeds'])} seeds in common), this - that:"]
+    for q in PAIRED:
+        c = pairs.get(q)
+        if c is None:
+            lines.append(f"  {q}: fewer than 3 fabrics in common")
+            continue
+        unit, k = units[q]
+        lines.append(f"  {q}: {c['mean_difference'] * k:+.2f} +- {c['difference_ci95'] * k:.2f} {unit} "
+                     f"(sd {c['sd_difference'] * k:.2f}, correlation {c['correlation']:.2f}, n {c['n']})")
+    return "\n".join(lines)
+
+
 def run_members(scene: str, overrides: list[str], v0: float, n: int, out_dir: str | Path,
                 jobs: int = 1, perturbation: float = PERTURBATION, on_member=None, executor=None,
                 progress=None, first_seed: int | None = None) -> list[dict]:

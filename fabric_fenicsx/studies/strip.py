@@ -230,20 +230,14 @@ def paired(a: dict, b: dict) -> dict:
     """Two studies' tables of one mesh ({seed: row}, :func:`read_table`) compared fabric by
     fabric over the seeds both pulled (the scattered ones, seed >= 0): ``n``, the mean of the
     strength differences a - b with its 95 % interval (Student t over the pairs), their sd and the
-    two samples' correlation; and :func:`compare` of the same seeds unpaired (``unpaired``)."""
-    from scipy import stats
+    two samples' correlation (:func:`~fabric_fenicsx.studies.means.paired`); and :func:`compare`
+    of the same seeds unpaired (``unpaired``)."""
+    from fabric_fenicsx.studies.means import paired as member_by_member
 
     seeds = sorted(s for s in set(a) & set(b) if s >= 0)
-    if len(seeds) < 3:
-        raise ValueError(f"paired: {len(seeds)} seeds in common, at least 3 are needed")
     x = np.array([a[s]["peak_force"] for s in seeds])
     y = np.array([b[s]["peak_force"] for s in seeds])
-    d = x - y
-    sd = float(d.std(ddof=1))
-    return {"n": len(seeds), "mean_difference": float(d.mean()),
-            "difference_ci95": float(stats.t.ppf(0.975, d.size - 1) * sd / math.sqrt(d.size)),
-            "sd_difference": sd, "correlation": float(np.corrcoef(x, y)[0, 1]) if sd > 0 else 1.0,
-            "unpaired": compare(x, y)}
+    return {**member_by_member(x, y), "unpaired": compare(x, y)}
 
 
 def against(tables: dict, others: dict) -> dict:

@@ -124,3 +124,47 @@ def test_seeds_without_a_scatter_are_refused(tmp_path):
                            "--seeds", "0", "--out", str(tmp_path / "e")], cwd=ROOT, capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 2 and "--seeds needs a strength scatter" in proc.stderr
+
+
+def test_two_ensembles_of_the_same_fabrics_pair_seed_by_seed(tmp_path, monkeypatch, capsys):
+    """``--against``: the members of two ensembles of seeds pair by seed over the seeds both ran
+    without error; an offset common to every fabric is resolved where the fabrics' own scatter
+    hides it from the means."""
+    from fabric_fenicsx.cli import main
+    from fabric_fenicsx.studies import runpool
+    from tests.tools.faults import TINY_SCENE
+
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY_SCENE)
+    fabric = {5: 3.0, 6: 41.0, 7: 17.0, 8: 29.0, 9: 8.0, 10: 22.0}     # each fabric's own residual velocity
+
+    def command(offset):
+        def make(run, out):
+            seed = int(run.overrides[-1].split("=")[1])
+            if offset and seed == 9:
+                return [sys.executable, "-c", "import sys; sys.exit(3)"]
+            v = fabric[seed] + offset + 0.01 * seed
+            return [sys.executable, "-c", f"import json; open({str(out / 'summary.json')!r}, 'w').write(json.dumps("
+                    f"dict(residual_velocity={v!r}, absorbed_energy={60.0 - v!r})))"]
+        return make
+    monkeypatch.setattr(runpool, "_stored", lambda run, folder: None)
+    base = tmp_path / "graded"
+    monkeypatch.setattr(runpool, "_command", command(0.0))
+    args = ["ensemble", str(scene), "--set", "material.scatter=weibull", "--seeds", "5", "--quiet", "--jobs", "1"]
+    assert main([*args, "-n", "5", "--out", str(base)]) == 0
+    monkeypatch.setattr(runpool, "_command", command(2.0))
+    assert main([*args, "-n", "6", "--out", str(tmp_path / "aligned"), "--against", str(base)]) == 1  # seed 9 fails
+    pairs = json.loads((tmp_path / "aligned" / "ensemble.json").read_text())["against"]
+    assert pairs["seeds"] == [5, 6, 7, 8] and pairs["folder"] == str(base)
+    v = pairs["residual_velocity"]
+    assert v["n"] == 4 and v["mean_difference"] == pytest.approx(2.0) and v["difference_ci95"] < 1e-9
+    assert pairs["absorbed_energy"]["mean_difference"] == pytest.approx(-2.0)
+    assert "paired by fabric with" in capsys.readouterr().out
+    rows = ensemble.read_members(base / "ensemble.csv")
+    assert [r["seed"] for r in rows] == [5, 6, 7, 8, 9] and isinstance(rows[0]["residual_velocity"], float)
+    assert main(["ensemble", str(scene), "--out", str(tmp_path / "z"), "--against", str(base)]) == 2
+    assert "it needs --seeds" in capsys.readouterr().err
+    assert main([*args, "--out", str(tmp_path / "w"), "--against", str(tmp_path / "none")]) == 2
+    assert "holds no ensemble.csv" in capsys.readouterr().err
+    assert main([*args, "--out", str(base), "--against", str(base)]) == 2
+    assert "another ensemble's folder" in capsys.readouterr().err
