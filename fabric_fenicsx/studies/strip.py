@@ -351,8 +351,9 @@ def plot(tables: dict, report: dict, path) -> None:
         if e.get("deterministic"):
             ax.axvline(e["deterministic"], color=line.get_color(), lw=0.8, ls="--")
     ax.set(xlabel="strip strength: peak end force (N)", ylabel="fraction of seeds below")
-    ax.set_title("strip pulled along the warp\n(dotted: Weibull fit; dashed: the strip without scatter)",
-                 fontsize=10)
+    rule = report.get("setup", {}).get("failure", "thesis")
+    ax.set_title(f"strip pulled along the warp, failure rule {rule}\n(dotted: Weibull fit; dashed: the strip "
+                 "without scatter)", fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
