@@ -16,10 +16,12 @@ unstructured quadrilaterals) and compares the distributions: whether the rule by
 reads the field (:func:`~fabric_fenicsx.material.scatter.cell_laws`) makes the failure
 statistics independent of the cell size. The failure rule is the thesis's (each point's own law)
 or a crack-tracking one (``failure``: a name of :data:`~fabric_fenicsx.fem.crack_rules.CRACK_RULES`,
-the scenes' ``material.failure``): a rule that follows the yarns should leave the strip's
-strength distribution as it is, since a strip breaks at its weakest segment either way.
-``fabric-fenicsx study strip`` is its command line; it writes strip.csv (a row per seed as it
-ends), strip.json and strip.png.
+the scenes' ``material.failure``). The first break is the weakest segment under either rule;
+what follows it is the rule's. Under the thesis's rule the tear runs across at once (the weakest
+link). Under ``del_zone_budget`` it grows tip by tip, against the cells' own laws, so that its
+strips are stronger the smaller the cells (docs/mesh_independence.md, section 10.1).
+``fabric-fenicsx study strip`` is its command line; it writes strip-<family>-<size>.csv (a row
+per seed as it ends), strip.json and strip.png.
 """
 from __future__ import annotations
 
