@@ -34,10 +34,19 @@ PROG = "fabric-fenicsx study strip"
 SETUP_FILE = "strip-setup.json"
 
 
+def strip_setup(args):
+    """The :class:`~fabric_fenicsx.studies.strip.StripSetup` of the options."""
+    from fabric_fenicsx.studies.strip import StripSetup
+
+    return StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule, crack_band=bool(args.crack_band),
+                      failure=args.failure)
+
+
 def pull_options(args) -> dict:
-    """The options that decide a pull (kept in OUT/strip-setup.json)."""
-    return {"scatter": args.scatter, "shear_modulus": args.shear_modulus, "cell_rule": args.cell_rule,
-            "crack_band": bool(args.crack_band), "failure": args.failure}
+    """What decides a pull (kept in OUT/strip-setup.json): the scatter and the whole setup."""
+    from dataclasses import asdict
+
+    return {"scatter": args.scatter, **asdict(strip_setup(args))}
 
 
 def _problems(args, sizes: list[float], families: list[str]) -> list[str]:
@@ -50,7 +59,7 @@ def _problems(args, sizes: list[float], families: list[str]) -> list[str]:
     if args.failure != "thesis" and args.failure not in CRACK_RULES:
         problems.append(f"--failure must be thesis or one of {list(CRACK_RULES)} for strip, got {args.failure!r}")
     kept = Path(args.out) / SETUP_FILE
-    if kept.is_file():
+    if kept.is_file() and not problems:
         try:
             before = json.loads(kept.read_text())
         except (OSError, ValueError) as err:
@@ -137,8 +146,7 @@ def _pull(args, sizes: list[float], families: list[str]) -> int:
         print(f"{PROG}: {len(configs)} meshes x ({args.seeds} seeds of {args.scatter} + no scatter), "
               f"{jobs} at a time, into {out}", flush=True)
     with multiprocessing.get_context("spawn").Pool(jobs) as pool:
-        setup = strip.StripSetup(shear_modulus=args.shear_modulus, cell_rule=args.cell_rule,
-                                 crack_band=args.crack_band, failure=args.failure)
+        setup = strip_setup(args)
         pending = [pool.apply_async(strip.run_configuration, (f, h, args.scatter, seeds, str(paths[(f, h)]), setup))
                    for f, h in configs]
         for (f, h), job in zip(configs, pending):

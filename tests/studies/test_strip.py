@@ -141,8 +141,11 @@ def test_a_crack_rule_breaks_the_strip_at_its_weakest_segment_as_the_thesiss_rul
 def test_a_strip_study_into_a_folder_of_other_options_is_refused(tmp_path):
     out = tmp_path / "s"
     out.mkdir()
-    kept = {"scatter": "weibull", "shear_modulus": 0.0, "cell_rule": "weakest", "crack_band": False,
-            "failure": "thesis"}
+    from dataclasses import asdict
+
+    from fabric_fenicsx.studies.strip import StripSetup
+
+    kept = {"scatter": "weibull", **asdict(StripSetup())}
     (out / "strip-setup.json").write_text(json.dumps(kept))
     cmd = [sys.executable, "-m", "fabric_fenicsx.cli", "study", "strip", "--out", str(out)]
     proc = subprocess.run(cmd + ["--failure", "del_zone_budget"], env=mpi_env(), capture_output=True, text=True,
